@@ -1,0 +1,124 @@
+"""The one source of device time.
+
+Every delay in every device model and in line pacing is expressed in *device seconds*. A clock maps
+device time to wall time: the real clock one to one, the scaled clock `scale` device seconds per
+wall second (pausable and steppable from the control channel), the manual clock not at all (tests
+move it explicitly, so runs are exact and deterministic).
+"""
+
+from __future__ import annotations
+
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Callable
+
+
+class Clock(ABC):
+    """Device time, and how long to wait in wall time until a device instant."""
+
+    def __init__(self) -> None:
+        self._listeners: list[Callable[[], None]] = []
+
+    @abstractmethod
+    def now(self) -> float:
+        """Current device time in seconds."""
+
+    @abstractmethod
+    def wall_delay(self, device_time: float) -> float | None:
+        """Wall seconds until `device_time` (0 if past), or None if time does not run on its own."""
+
+    def on_change(self, listener: Callable[[], None]) -> None:
+        """Call `listener` whenever the device-time/wall-time relation changes (scale, pause, step)."""
+        self._listeners.append(listener)
+
+    def _changed(self) -> None:
+        for listener in list(self._listeners):
+            listener()
+
+
+class ScaledClock(Clock):
+    """Wall-clock-driven device time at `scale` device seconds per wall second (1.0 = real time)."""
+
+    def __init__(self, scale: float = 1.0, wall: Callable[[], float] = time.monotonic) -> None:
+        super().__init__()
+        if scale <= 0:
+            raise ValueError(f"time scale must be > 0, got {scale}")
+        self._wall = wall
+        self._scale = scale
+        self._anchor_wall = wall()
+        self._anchor_device = 0.0
+        self._paused = False
+
+    @property
+    def scale(self) -> float:
+        return self._scale
+
+    @property
+    def paused(self) -> bool:
+        return self._paused
+
+    def now(self) -> float:
+        if self._paused:
+            return self._anchor_device
+        return self._anchor_device + (self._wall() - self._anchor_wall) * self._scale
+
+    def wall_delay(self, device_time: float) -> float | None:
+        if self._paused:
+            return None
+        return max(0.0, (device_time - self.now()) / self._scale)
+
+    def _rebase(self) -> None:
+        self._anchor_device = self.now()
+        self._anchor_wall = self._wall()
+
+    def set_scale(self, scale: float) -> None:
+        if scale <= 0:
+            raise ValueError(f"time scale must be > 0, got {scale}")
+        self._rebase()
+        self._scale = scale
+        self._changed()
+
+    def pause(self) -> None:
+        self._rebase()
+        self._paused = True
+        self._changed()
+
+    def resume(self) -> None:
+        self._anchor_wall = self._wall()
+        self._paused = False
+        self._changed()
+
+    def step(self, seconds: float) -> None:
+        """Advance device time by `seconds` at once (meant for a paused clock)."""
+        if seconds < 0:
+            raise ValueError(f"cannot step time backwards ({seconds} s)")
+        self._rebase()
+        self._anchor_device += seconds
+        self._changed()
+
+
+class ManualClock(Clock):
+    """Time that moves only when a test says so."""
+
+    def __init__(self, start: float = 0.0) -> None:
+        super().__init__()
+        self._now = start
+
+    def now(self) -> float:
+        return self._now
+
+    def wall_delay(self, device_time: float) -> float | None:
+        return None
+
+    def advance(self, seconds: float) -> float:
+        if seconds < 0:
+            raise ValueError(f"cannot step time backwards ({seconds} s)")
+        self._now += seconds
+        self._changed()
+        return self._now
+
+    def set(self, device_time: float) -> None:
+        if device_time < self._now:
+            raise ValueError(f"cannot set time backwards ({device_time} < {self._now})")
+        self._now = device_time
+        self._changed()

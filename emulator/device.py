@@ -1,0 +1,147 @@
+"""The contract between a device model and the host that runs it.
+
+A device model is a sans-I/O state machine (the h11/wsproto idea). It never touches a file
+descriptor, a socket, a thread or the wall clock: the host feeds it bytes stamped with device time,
+asks it when it next needs to act, lets it act, and drains an outbox of timed bytes. The same model
+then runs under a PTY, over TCP, in-process and in a unit test on a manual clock, deterministically.
+
+Host obligations (see emulator/runner.py):
+- Times passed in are non-decreasing across all calls.
+- Before calling `receive(data, t)` the host calls `advance(t)`, so the model has processed every
+  internal event due at or before `t`.
+- Whenever `next_deadline()` returns a time, the host calls `advance()` no later than that time
+  (with a real clock, possibly a little later: the model must stamp its outputs with the exact
+  instant the event was due, never with the `now` it was called at).
+- After every call the host drains `take_output()` and `take_events()`.
+
+Model obligations:
+- `Emission.due` is the device instant at which the bytes are handed to the device's transmitter;
+  the line layer (emulator/line.py) then paces them at the character rate.
+- Bad input never raises: it produces whatever the real device does with it.
+"""
+
+from __future__ import annotations
+
+import logging
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from emulator.profile import Profile
+
+MAIN = "main"
+
+
+@dataclass(frozen=True)
+class LineSettings:
+    """Serial line settings of one end. None means "not visible on this transport" (assume a match)."""
+
+    baud: int | None = None
+    data_bits: int | None = None
+    parity: str | None = None  # "none" | "even" | "odd"
+    stop_bits: float | None = None  # 1, 1.5 or 2
+    rtscts: bool | None = None
+    xonxoff: bool | None = None
+
+    def describe(self) -> str:
+        """Compact form used in log lines, e.g. `9600 8N1 rtscts`."""
+        baud = "?" if self.baud is None else str(self.baud)
+        bits = "?" if self.data_bits is None else str(self.data_bits)
+        parity = "?" if self.parity is None else self.parity[0].upper()
+        stop = "?" if self.stop_bits is None else f"{self.stop_bits:g}"
+        text = f"{baud} {bits}{parity}{stop}"
+        if self.rtscts:
+            text += " rtscts"
+        if self.xonxoff:
+            text += " xonxoff"
+        return text
+
+
+@dataclass(frozen=True)
+class Emission:
+    """Bytes the device hands to its transmitter at device time `due`, on one of its channels."""
+
+    due: float
+    data: bytes
+    channel: str = MAIN
+
+
+@dataclass(frozen=True)
+class HostServices:
+    """What the host offers a model besides bytes and time."""
+
+    #: directory for non-volatile device memory (emulator/nvstore.py); None = nothing persists
+    state_dir: Path | None = None
+
+
+class ControlError(Exception):
+    """A control-channel request the device cannot honour; the message goes back to the client."""
+
+
+class Device(ABC):
+    """A sans-I/O device model. Subclasses register themselves per family (emulator/devices)."""
+
+    #: channels (ports) the model talks on; most devices have just `main`
+    channels: tuple[str, ...] = (MAIN,)
+    #: False when the profile asks for unpaced output (MP-285 `pace_line: false`); the host then
+    #: delivers at once even on a `timing: realistic` port
+    pace_line: bool = True
+
+    def __init__(self, name: str, profile: Profile, now: float, services: HostServices) -> None:
+        self.name = name
+        self.profile = profile
+        self.services = services
+        self.log = logging.getLogger(f"stage_emu.device.{name}")
+
+    @abstractmethod
+    def receive(self, data: bytes, now: float, channel: str = MAIN) -> None:
+        """Bytes completely received from the host at device time `now`."""
+
+    @abstractmethod
+    def advance(self, now: float) -> None:
+        """Process every internal event due at or before `now`."""
+
+    @abstractmethod
+    def next_deadline(self) -> float | None:
+        """Device time of the next internal event, or None when nothing is scheduled."""
+
+    @abstractmethod
+    def take_output(self) -> list[Emission]:
+        """Drain the outbox."""
+
+    def take_events(self) -> list[dict[str, Any]]:
+        """Drain pushed control-channel events (`{"ev": name, ...}`); none by default."""
+        return []
+
+    @abstractmethod
+    def line_settings(self, channel: str = MAIN) -> LineSettings:
+        """The device's own line settings on `channel` (what its UART is set to now)."""
+
+    @abstractmethod
+    def line_changed(self, host: LineSettings | None, now: float, channel: str = MAIN) -> None:
+        """The host's settings as the transport sees them; None when no host is attached."""
+
+    def mismatch_effect(self, host: LineSettings, channel: str = MAIN) -> str:
+        """What a host with these (differing) settings will experience, for the one-line warning,
+        e.g. `traffic will be garbled (line_mismatch=garble)`."""
+        return ""
+
+    @abstractmethod
+    def snapshot(self) -> dict[str, Any]:
+        """Full observable state as plain JSON-able data (control channel `snapshot`)."""
+
+    def observe(self, name: str, now: float) -> Any:
+        """Control-channel read `{"get": name}`. Default: a top-level key of the snapshot."""
+        state = self.snapshot()
+        if name not in state:
+            raise ControlError(f"{self.name}: no observable {name!r}; known: {', '.join(sorted(state))}")
+        return state[name]
+
+    def control_input(self, name: str, params: dict[str, Any], now: float) -> Any:
+        """Control-channel input `{"in": name, ...params}`."""
+        raise ControlError(f"{self.name}: no input {name!r}")
+
+    def summarize(self, direction: str, data: bytes) -> str | None:
+        """One-line decoded summary of traffic for the traffic log (`rx` from host, `tx` to host)."""
+        return None

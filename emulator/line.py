@@ -1,0 +1,126 @@
+"""The serial line between host and device: character timing and pacing.
+
+A pseudo-terminal moves bytes at memory speed. With `timing: realistic` the device's output is
+released one character at a time, each character arriving when its stop bit ends on a real wire
+(`bits_per_char / baud`), and host input is handed to the device no earlier than the end of its own
+wire time at the host's rate (bytes of one write back to back). With `timing: fast` both happen at
+once. All times are device seconds (emulator/clock.py).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+from emulator.device import LineSettings
+
+REALISTIC = "realistic"
+FAST = "fast"
+TIMINGS = (REALISTIC, FAST)
+
+_EPSILON = 1e-9
+
+
+def bits_per_char(data_bits: int = 8, parity: str = "none", stop_bits: float = 1) -> float:
+    """Start bit + data bits + parity bit (if any) + stop bits."""
+    return 1 + data_bits + (0 if parity == "none" else 1) + stop_bits
+
+
+def char_time(baud: int, data_bits: int = 8, parity: str = "none", stop_bits: float = 1) -> float:
+    """Seconds one character occupies the wire (1.0417 ms at 9600 8N1)."""
+    return bits_per_char(data_bits, parity, stop_bits) / baud
+
+
+def settings_char_time(settings: LineSettings, fallback: LineSettings) -> float:
+    """Character time of `settings`, taking what a transport cannot see (None) from `fallback`."""
+
+    def pick(name: str) -> object:
+        value = getattr(settings, name)
+        return getattr(fallback, name) if value is None else value
+
+    return char_time(pick("baud"), pick("data_bits"), pick("parity"), pick("stop_bits"))  # type: ignore[arg-type]
+
+
+@dataclass
+class _Run:
+    """Bytes sent back to back: byte k is complete at `first_end + k * per_char`."""
+
+    first_end: float
+    per_char: float
+    data: bytes
+
+
+class Pacer:
+    """Serialises bytes onto one direction of the line and says when each is complete.
+
+    `push(t, data)` queues bytes that become ready to send at device time `t`; they go out after
+    whatever is already on the wire. `take_due(now)` pops the (completion time, bytes) runs whose
+    characters are complete by `now`. A per-character time of 0 delivers at once (`timing: fast`).
+    """
+
+    def __init__(self, per_char: float = 0.0) -> None:
+        self.per_char = per_char
+        self._runs: deque[_Run] = deque()
+        self._wire_free = float("-inf")
+
+    def push(self, t: float, data: bytes) -> None:
+        if not data:
+            return
+        start = max(t, self._wire_free)
+        run = _Run(start + self.per_char, self.per_char, bytes(data))
+        self._wire_free = start + self.per_char * len(data)
+        self._runs.append(run)
+
+    @property
+    def wire_free(self) -> float:
+        """Device time at which the last queued character is complete."""
+        return self._wire_free
+
+    def next_due(self) -> float | None:
+        return self._runs[0].first_end if self._runs else None
+
+    def take_due(self, now: float) -> list[tuple[float, bytes]]:
+        """Runs of characters complete by `now`, each as (completion time of its last byte, bytes)."""
+        taken: list[tuple[float, bytes]] = []
+        while self._runs:
+            run = self._runs[0]
+            if run.first_end > now + _EPSILON:
+                break
+            if run.per_char <= 0:
+                count = len(run.data)
+            else:
+                count = min(len(run.data), int((now + _EPSILON - run.first_end) / run.per_char) + 1)
+            taken.append((run.first_end + (count - 1) * run.per_char, run.data[:count]))
+            if count == len(run.data):
+                self._runs.popleft()
+            else:
+                run.data = run.data[count:]
+                run.first_end += count * run.per_char
+        return taken
+
+    def take_each_due(self, now: float) -> list[tuple[float, int]]:
+        """Like `take_due`, one (completion time, byte) per character."""
+        result: list[tuple[float, int]] = []
+        for end, data in self.take_due(now):
+            first = end - (len(data) - 1) * self.per_char
+            result.extend((first + i * self.per_char, b) for i, b in enumerate(data))
+        return result
+
+    def clear(self) -> None:
+        self._runs.clear()
+        self._wire_free = float("-inf")
+
+    def __len__(self) -> int:
+        return sum(len(run.data) for run in self._runs)
+
+
+def mismatches(device: LineSettings, host: LineSettings) -> list[str]:
+    """Names of the settings in which a host visibly differs from the device (None = not visible)."""
+    names = ("baud", "data_bits", "parity", "stop_bits", "rtscts", "xonxoff")
+    return [
+        name
+        for name in names
+        if getattr(host, name) is not None
+        and getattr(device, name) is not None
+        and getattr(host, name) != getattr(device, name)
+    ]
