@@ -114,7 +114,10 @@ def _read(path: FsPath) -> Located:
         text = path.read_text()
     except OSError as exc:
         raise ProfileError(f"{_display(path)}: cannot read profile: {exc.strerror or exc}") from None
-    return load_located(text, _display(path))
+    try:
+        return load_located(text, _display(path))
+    except SourceError as exc:
+        raise ProfileError(str(exc)) from None
 
 
 def _load_chain(

@@ -269,6 +269,8 @@ class Struct(Type):
                 raise SchemaError((*path, f.name), "is required")
             elif isinstance(f.default, Derived):
                 derived.append(f)
+            elif isinstance(f.type, Struct):
+                resolved[f.name] = f.type.check(f.default or {}, (*path, f.name))
             else:
                 resolved[f.name] = f.type.check(f.default, (*path, f.name)) if f.default is not None else None
         for f in derived:

@@ -67,9 +67,17 @@ def load_located(text: str, source: str) -> Located:
         loader.dispose()
 
 
+_PLAIN_TAGS = {yaml.MappingNode: "tag:yaml.org,2002:map", yaml.SequenceNode: "tag:yaml.org,2002:seq"}
+
+
 def _build(
     loader: yaml.SafeLoader, node: yaml.Node, path: Path, places: dict[Path, Where], source: str
 ) -> Any:
+    expected = _PLAIN_TAGS.get(type(node))
+    if expected is not None and node.tag != expected:
+        raise SourceError(
+            f"{source}:{node.start_mark.line + 1}: not valid YAML: tag {node.tag} is not allowed"
+        )
     if isinstance(node, yaml.MappingNode):
         result: dict[Any, Any] = {}
         for key_node, value_node in node.value:

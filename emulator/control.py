@@ -1,0 +1,350 @@
+"""Control channel: JSON lines over a Unix socket (mode 0600), and its Python client.
+
+One request per line, one reply per request, replies in order:
+
+    {"id": 1, "op": "list"}                                        -> devices and their ports
+    {"id": 2, "device": "stage", "op": "snapshot", "path": "axes.X"}
+    {"id": 3, "device": "stage", "get": "lcd"}                     -> a device observable
+    {"id": 4, "device": "stage", "in": "joystick", "x": 0.5}       -> a device input
+    {"id": 5, "device": "stage", "op": "reset"}                    -> fresh model from the profile
+    {"id": 6, "device": "stage", "op": "power_cycle"}
+    {"id": 7, "device": "stage", "op": "fault", "port": "main", "fault": "drop", "count": 2}
+    {"id": 8, "op": "clock", "scale": 10}     also {"op": "pause"}, {"op": "resume"},
+                                              {"op": "step", "seconds": 0.5}
+    {"id": 9, "device": "stage", "op": "subscribe"}                -> then {"ev": ..., "device": ...} lines
+
+Replies: `{"id": .., "ok": true, "result": ..}` or `{"id": .., "ok": false, "error": "sentence"}`.
+The device vocabulary (`in`, `get`, `ev` names) belongs to each device model.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import json
+import logging
+import os
+import socket
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+from emulator.clock import ScaledClock
+from emulator.device import ControlError
+from emulator.runner import DeviceRunner
+
+log = logging.getLogger("stage_emu.control")
+
+MAX_REQUEST = 1 << 20
+FAULTS_HELP = "disconnect, hang, drop, corrupt, latency, clear"
+
+
+class RequestError(Exception):
+    """A request that cannot be served; its message is the reply's `error`."""
+
+
+class ControlServer:
+    def __init__(self, path: Path, runners: dict[str, DeviceRunner], clock: ScaledClock) -> None:
+        self.path = path
+        self._runners = runners
+        self._clock = clock
+        self._server: asyncio.AbstractServer | None = None
+        self._subscribers: dict[str, set[asyncio.StreamWriter]] = {}
+
+    async def start(self) -> None:
+        _clear_stale_socket(self.path)
+        old_umask = os.umask(0o177)
+        try:
+            self._server = await asyncio.start_unix_server(
+                self._serve, path=str(self.path), limit=MAX_REQUEST
+            )
+        finally:
+            os.umask(old_umask)
+        os.chmod(self.path, 0o600)
+
+    async def stop(self) -> None:
+        if self._server is not None:
+            self._server.close()
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(self._server.wait_closed(), 1.0)
+        with contextlib.suppress(FileNotFoundError):
+            self.path.unlink()
+
+    def publish(self, device: str, event: dict[str, Any]) -> None:
+        """Push a device event to every connection subscribed to that device."""
+        line = (json.dumps({**event, "device": device}) + "\n").encode()
+        for writer in list(self._subscribers.get(device, ())):
+            if writer.is_closing():
+                self._subscribers[device].discard(writer)
+            else:
+                writer.write(line)
+
+    async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        try:
+            while True:
+                try:
+                    line = await reader.readline()
+                except (asyncio.LimitOverrunError, ValueError):
+                    writer.write(_reply(None, error=f"request longer than {MAX_REQUEST} bytes"))
+                    break
+                if not line:
+                    break
+                writer.write(self.handle_line(line, writer))
+                await writer.drain()
+        except ConnectionError:
+            pass
+        finally:
+            for subscribers in self._subscribers.values():
+                subscribers.discard(writer)
+            writer.close()
+
+    def handle_line(self, line: bytes, writer: asyncio.StreamWriter | None = None) -> bytes:
+        try:
+            request = json.loads(line)
+        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            return _reply(None, error=f"not a JSON object: {exc}")
+        if not isinstance(request, dict):
+            return _reply(None, error="a request must be a JSON object")
+        ident = request.get("id")
+        try:
+            return _reply(ident, result=self._dispatch(request, writer))
+        except (RequestError, ControlError, ValueError) as exc:
+            return _reply(ident, error=str(exc))
+        except Exception as exc:  # a model bug must not take the daemon down
+            log.exception("control request %r failed", request)
+            return _reply(ident, error=f"internal error: {type(exc).__name__}: {exc}")
+
+    def _dispatch(self, request: dict[str, Any], writer: asyncio.StreamWriter | None) -> Any:
+        op = request.get("op")
+        if "device" not in request:
+            return self._global(op, request)
+        runner = self._runner(request["device"])
+        if "in" in request:
+            name = _name(request["in"], "in")
+            params = {k: v for k, v in request.items() if k not in ("id", "device", "in")}
+            return runner.call(lambda now: runner.device.control_input(name, params, now))
+        if "get" in request:
+            name = _name(request["get"], "get")
+            if name == "ports":
+                return {
+                    ch.name: ch.transport.path if ch.transport else None for ch in runner.channels.values()
+                }
+            return runner.call(lambda now: runner.device.observe(name, now))
+        if op == "snapshot":
+            return _at_path(runner.call(lambda now: runner.device.snapshot()), request.get("path"))
+        if op == "reset":
+            runner.reset()
+            return True
+        if op == "power_cycle":
+            return runner.call(lambda now: runner.device.control_input("power_cycle", {}, now))
+        if op == "fault":
+            params = {k: v for k, v in request.items() if k not in ("id", "device", "op", "port", "fault")}
+            return runner.inject(str(request.get("port", "main")), str(request.get("fault")), params)
+        if op in ("subscribe", "unsubscribe"):
+            if writer is None:
+                raise RequestError(f"{op} needs a connection")
+            subscribers = self._subscribers.setdefault(runner.name, set())
+            (subscribers.add if op == "subscribe" else subscribers.discard)(writer)
+            return True
+        raise RequestError(
+            f"unknown device request {op!r}; use 'in', 'get' or an op: "
+            "snapshot, reset, power_cycle, fault, subscribe, unsubscribe"
+        )
+
+    def _global(self, op: Any, request: dict[str, Any]) -> Any:
+        if op == "list":
+            return [_describe(runner) for runner in self._runners.values()]
+        if op == "clock":
+            if "scale" in request:
+                scale = request["scale"]
+                if isinstance(scale, bool) or not isinstance(scale, int | float) or scale <= 0:
+                    raise RequestError(f"scale must be a number > 0, got {scale!r}")
+                self._clock.set_scale(float(scale))
+            return self._clock_state()
+        if op == "pause":
+            self._clock.pause()
+            return self._clock_state()
+        if op == "resume":
+            self._clock.resume()
+            return self._clock_state()
+        if op == "step":
+            seconds = request.get("seconds")
+            if isinstance(seconds, bool) or not isinstance(seconds, int | float) or seconds < 0:
+                raise RequestError(f"seconds must be a number >= 0, got {seconds!r}")
+            self._clock.step(float(seconds))
+            return self._clock_state()
+        if op is None:
+            raise RequestError("a request needs 'op' (list, clock, pause, resume, step) or a 'device'")
+        raise RequestError(f"unknown op {op!r}; without a device: list, clock, pause, resume, step")
+
+    def _clock_state(self) -> dict[str, Any]:
+        return {"now": self._clock.now(), "scale": self._clock.scale, "paused": self._clock.paused}
+
+    def _runner(self, name: Any) -> DeviceRunner:
+        runner = self._runners.get(name) if isinstance(name, str) else None
+        if runner is None:
+            raise RequestError(f"no device {name!r}; devices: {', '.join(self._runners) or 'none'}")
+        return runner
+
+
+def _describe(runner: DeviceRunner) -> dict[str, Any]:
+    profile = runner.device.profile
+    ports = []
+    for ch in runner.channels.values():
+        ports.append(
+            {
+                "port": ch.name,
+                "path": ch.transport.path if ch.transport else None,
+                "pts": ch.transport.device_path if ch.transport else None,
+                "attached": ch.attached,
+                "host": ch.host.describe() if ch.host else None,
+                "timing": ch.timing,
+                "faults": ch.faults.describe(),
+            }
+        )
+    return {"device": runner.name, "family": profile.family, "profile": profile.name, "ports": ports}
+
+
+def _name(value: Any, key: str) -> str:
+    if not isinstance(value, str) or not value:
+        raise RequestError(f"'{key}' must be a non-empty string, got {value!r}")
+    return value
+
+
+def _at_path(state: Any, path: Any) -> Any:
+    if path in (None, ""):
+        return state
+    if not isinstance(path, str):
+        raise RequestError(f"path must be a dotted string, got {path!r}")
+    for part in path.split("."):
+        if isinstance(state, dict) and part in state:
+            state = state[part]
+        elif isinstance(state, list) and part.isdigit() and int(part) < len(state):
+            state = state[int(part)]
+        else:
+            raise RequestError(f"no {part!r} in snapshot path {path!r}")
+    return state
+
+
+def _reply(ident: Any, result: Any = None, error: str | None = None) -> bytes:
+    body: dict[str, Any] = {"id": ident, "ok": error is None}
+    if error is None:
+        body["result"] = result
+    else:
+        body["error"] = error
+    return (json.dumps(body, default=str) + "\n").encode()
+
+
+def _clear_stale_socket(path: Path) -> None:
+    if not path.exists() and not path.is_symlink():
+        return
+    probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    try:
+        probe.connect(str(path))
+    except OSError:
+        path.unlink()
+        return
+    finally:
+        probe.close()
+    raise RequestError(f"{path} is in use by a running stage-emu; stop it or pass --control another path")
+
+
+class ControlFailure(Exception):
+    """The daemon answered a request with an error."""
+
+
+class ControlClient:
+    """Blocking client for the control channel (stdlib only)."""
+
+    def __init__(self, path: str | Path, timeout: float = 10.0) -> None:
+        self._sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        self._sock.settimeout(timeout)
+        self._sock.connect(str(path))
+        self._buffer = b""
+        self._next_id = 0
+        self._events: list[dict[str, Any]] = []
+
+    def close(self) -> None:
+        self._sock.close()
+
+    def __enter__(self) -> ControlClient:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def request(self, request: dict[str, Any]) -> Any:
+        self._next_id += 1
+        ident = self._next_id
+        self._sock.sendall((json.dumps({**request, "id": ident}) + "\n").encode())
+        while True:
+            message = self._read_message()
+            if "ev" in message:
+                self._events.append(message)
+                continue
+            if message.get("id") != ident:
+                continue
+            if not message.get("ok"):
+                raise ControlFailure(message.get("error", "unknown error"))
+            return message.get("result")
+
+    def _read_message(self) -> dict[str, Any]:
+        while b"\n" not in self._buffer:
+            chunk = self._sock.recv(65536)
+            if not chunk:
+                raise ConnectionError("control channel closed")
+            self._buffer += chunk
+        line, self._buffer = self._buffer.split(b"\n", 1)
+        return json.loads(line)
+
+    def events(self, timeout: float | None = None) -> Iterator[dict[str, Any]]:
+        """Pushed events (after `subscribe`), buffered ones first; stops at `timeout` of silence."""
+        while True:
+            while self._events:
+                yield self._events.pop(0)
+            previous = self._sock.gettimeout()
+            self._sock.settimeout(timeout)
+            try:
+                message = self._read_message()
+            except TimeoutError:
+                return
+            finally:
+                self._sock.settimeout(previous)
+            if "ev" in message:
+                yield message
+
+    def list(self) -> list[dict[str, Any]]:
+        return self.request({"op": "list"})
+
+    def get(self, device: str, name: str) -> Any:
+        return self.request({"device": device, "get": name})
+
+    def input(self, device: str, name: str, **params: Any) -> Any:
+        return self.request({"device": device, "in": name, **params})
+
+    def snapshot(self, device: str, path: str | None = None) -> Any:
+        return self.request({"device": device, "op": "snapshot", "path": path})
+
+    def reset(self, device: str) -> Any:
+        return self.request({"device": device, "op": "reset"})
+
+    def power_cycle(self, device: str) -> Any:
+        return self.request({"device": device, "op": "power_cycle"})
+
+    def fault(self, device: str, fault: str, port: str = "main", **params: Any) -> Any:
+        return self.request({"device": device, "op": "fault", "port": port, "fault": fault, **params})
+
+    def subscribe(self, device: str) -> Any:
+        return self.request({"device": device, "op": "subscribe"})
+
+    def clock(self, scale: float | None = None) -> Any:
+        return self.request({"op": "clock"} if scale is None else {"op": "clock", "scale": scale})
+
+    def pause(self) -> Any:
+        return self.request({"op": "pause"})
+
+    def resume(self) -> Any:
+        return self.request({"op": "resume"})
+
+    def step(self, seconds: float) -> Any:
+        return self.request({"op": "step", "seconds": seconds})

@@ -1,0 +1,162 @@
+"""Rig files: which devices to run, with which profile, on which ports.
+
+spec: 1
+devices:
+  - name: stage                 # unique; names the default link and the control-channel device
+    profile: ms2000             # bundled name or path (relative to the rig file)
+    overrides:                  # optional, merged onto the profile like one more `extends`
+      knobs: {empty_line_reply: ignore}
+    ports:                      # optional; default: one PTY on the main channel
+      - channel: main           # the device's port (most devices have only `main`)
+        type: pty
+        link: ~/dev/ttyStage    # optional; default <runtime dir>/<name>
+        mode: 0600              # pts permissions (octal)
+        timing: realistic       # or fast
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path as FsPath
+from typing import Any
+
+from emulator.line import TIMINGS
+from emulator.profile import Profile, ProfileError, load_profile
+from emulator.schema import Choice, Field, Int, ListOf, Nullable, SchemaError, Str, Struct, Type
+from emulator.yamlsource import load_located
+
+NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}"
+
+
+@dataclass(frozen=True)
+class Anything(Type):
+    """Free-form mapping checked later (profile overrides are validated against the profile)."""
+
+    def check(self, value: Any, path: tuple[str | int, ...]) -> Any:
+        if not isinstance(value, dict):
+            raise SchemaError(path, f"{value!r} is not a mapping")
+        return value
+
+    def describe(self) -> str:
+        return "mapping"
+
+
+PORT = Struct(
+    "RigPort",
+    (
+        Field("channel", Str(), "main", doc="device channel this port carries"),
+        Field("type", Choice(("pty",)), "pty", doc="transport"),
+        Field("link", Nullable(Str()), None, doc="stable path of the port (a symlink to the pts)"),
+        Field("mode", Int(0, 0o777), 0o600, doc="permissions of the pts device node"),
+        Field("timing", Nullable(Choice(TIMINGS)), None, doc="realistic (paced at the baud rate) or fast"),
+    ),
+)
+DEVICE = Struct(
+    "RigDevice",
+    (
+        Field(
+            "name", Str(pattern=NAME_PATTERN, pattern_text="letters, digits, '_', '.', '-'"), required=True
+        ),
+        Field("profile", Str(), required=True, doc="bundled profile name or path"),
+        Field("overrides", Nullable(Anything()), None, doc="profile keys to override"),
+        Field("ports", Nullable(ListOf(PORT, min_length=1)), None, doc="ports (default: one PTY)"),
+    ),
+)
+RIG = Struct(
+    "Rig",
+    (
+        Field("spec", Int(choices=(1,)), required=True),
+        Field("description", Nullable(Str()), None),
+        Field("devices", ListOf(DEVICE, min_length=1), required=True),
+    ),
+)
+
+
+@dataclass(frozen=True)
+class PortSpec:
+    channel: str
+    type: str
+    link: FsPath | None
+    mode: int
+    timing: str | None
+
+
+@dataclass(frozen=True)
+class DeviceSpec:
+    name: str
+    profile: Profile
+    ports: tuple[PortSpec, ...]
+
+
+@dataclass(frozen=True)
+class Rig:
+    source: str
+    devices: tuple[DeviceSpec, ...]
+
+
+def load_rig(path: FsPath) -> Rig:
+    try:
+        text = path.read_text()
+    except OSError as exc:
+        raise ProfileError(f"{path}: cannot read rig file: {exc.strerror or exc}") from None
+    located = load_located(text, str(path))
+    try:
+        raw = RIG.check(located.data, ())
+    except SchemaError as exc:
+        raise ProfileError(str(located.error(exc.path, exc.message))) from None
+    devices = []
+    for index, dev in enumerate(raw.devices):
+        overrides = located.subtree(("devices", index, "overrides")) if dev.overrides else None
+        profile = load_profile(dev.profile, overrides, relative_to=path.parent)
+        ports = dev.ports or (PORT.check({}, ()),)
+        specs = tuple(
+            PortSpec(p.channel, p.type, _link(p.link, path.parent), p.mode, p.timing) for p in ports
+        )
+        devices.append(DeviceSpec(dev.name, profile, specs))
+    rig = Rig(str(path), tuple(devices))
+    problem = check_rig(rig)
+    if problem:
+        raise ProfileError(f"{path}: {problem}")
+    return rig
+
+
+def _link(link: str | None, base: FsPath) -> FsPath | None:
+    if link is None:
+        return None
+    path = FsPath(link).expanduser()
+    return path if path.is_absolute() else base / path
+
+
+def check_rig(rig: Rig) -> str:
+    """Cross-device checks: unique names, one port per channel, unique links."""
+    names = [d.name for d in rig.devices]
+    duplicate = next((n for n in names if names.count(n) > 1), None)
+    if duplicate:
+        return f"device name {duplicate!r} is used twice"
+    links: list[FsPath] = []
+    for dev in rig.devices:
+        channels = [p.channel for p in dev.ports]
+        again = next((c for c in channels if channels.count(c) > 1), None)
+        if again:
+            return f"device {dev.name!r} has two ports on channel {again!r}"
+        links.extend(p.link for p in dev.ports if p.link is not None)
+    twice = next((link for link in links if links.count(link) > 1), None)
+    return f"link {twice} is used by two ports" if twice else ""
+
+
+def rig_from_profiles(entries: list[str]) -> Rig:
+    """`--profile NAME[:LINK]` options as a rig: device names are `<profile>-<n>`."""
+    devices = []
+    counts: dict[str, int] = {}
+    for entry in entries:
+        ref, _, link = entry.partition(":")
+        profile = load_profile(ref)
+        index = counts.get(profile.name, 0)
+        counts[profile.name] = index + 1
+        port = PortSpec("main", "pty", FsPath(link).expanduser().absolute() if link else None, 0o600, None)
+        devices.append(DeviceSpec(f"{profile.name}-{index}", profile, (port,)))
+    rig = Rig("--profile", tuple(devices))
+    problem = check_rig(rig)
+    if problem:
+        raise ProfileError(problem)
+    return rig

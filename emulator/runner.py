@@ -1,0 +1,383 @@
+"""Hosts one sans-I/O device model: feeds it paced host bytes, runs its timers on the clock, paces its
+output onto its ports, applies injected faults, logs traffic and line mismatches.
+
+The runner is transport-agnostic and clock-agnostic. With a real or scaled clock and an asyncio loop
+it arms one timer for the next thing due (no polling); with a manual clock it runs whenever the test
+moves the clock.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from emulator.clock import Clock
+from emulator.device import Device, Emission, LineSettings
+from emulator.line import REALISTIC, Pacer, mismatches, settings_char_time
+from emulator.trafficlog import TrafficLog
+from emulator.transports.base import Transport
+
+log = logging.getLogger("stage_emu.runner")
+
+#: the value each corrupted byte is XORed with (`corrupt` fault)
+CORRUPT_MASK = 0xFF
+
+
+@dataclass
+class Faults:
+    """Injected port faults (control channel `fault`)."""
+
+    hung: bool = False
+    drop_replies: int = 0
+    corrupt_bytes: int = 0
+    latency_s: float = 0.0
+    vanished: bool = False
+
+    def describe(self) -> dict[str, Any]:
+        return {
+            "hung": self.hung,
+            "drop_replies": self.drop_replies,
+            "corrupt_bytes": self.corrupt_bytes,
+            "latency_ms": self.latency_s * 1000,
+            "disconnected": self.vanished,
+        }
+
+
+@dataclass
+class Channel:
+    """One port of the device: its transport, host state, pacing in both directions and faults."""
+
+    name: str
+    timing: str = REALISTIC
+    transport: Transport | None = None
+    attached: bool = False
+    host: LineSettings | None = None
+    to_host: Pacer = field(default_factory=Pacer)
+    from_host: Pacer = field(default_factory=Pacer)
+    faults: Faults = field(default_factory=Faults)
+    reported_mismatch: tuple[Any, ...] = ()
+
+
+class _ChannelSink:
+    """Adapts transport callbacks to the runner for one channel."""
+
+    def __init__(self, runner: DeviceRunner, channel: Channel) -> None:
+        self._runner = runner
+        self._channel = channel
+
+    def host_attached(self, host: LineSettings | None) -> None:
+        self._runner.host_attached(self._channel, host)
+
+    def host_detached(self) -> None:
+        self._runner.host_detached(self._channel)
+
+    def host_line(self, host: LineSettings) -> None:
+        self._runner.host_line(self._channel, host)
+
+    def host_data(self, data: bytes) -> None:
+        self._runner.host_data(self._channel, data)
+
+
+class DeviceRunner:
+    def __init__(
+        self,
+        make_device: Callable[[float], Device],
+        clock: Clock,
+        *,
+        loop: asyncio.AbstractEventLoop | None = None,
+        traffic: TrafficLog | None = None,
+        on_event: Callable[[str, dict[str, Any]], None] | None = None,
+    ) -> None:
+        self._make_device = make_device
+        self.clock = clock
+        self.device = make_device(clock.now())
+        self.channels: dict[str, Channel] = {name: Channel(name) for name in self.device.channels}
+        self._loop = loop
+        self._traffic = traffic
+        self._on_event = on_event
+        self._timer: asyncio.TimerHandle | None = None
+        self._timer_due: float | None = None
+        self._actions: list[tuple[float, Callable[[], None]]] = []
+        clock.on_change(self.pump)
+
+    @property
+    def name(self) -> str:
+        return self.device.name
+
+    # ---- wiring -------------------------------------------------------------------------------
+
+    def attach_transport(self, channel: str, transport: Transport, timing: str = REALISTIC) -> None:
+        if channel not in self.channels:
+            known = ", ".join(self.channels)
+            raise ValueError(f"{self.name}: no channel {channel!r} (this device has: {known})")
+        ch = self.channels[channel]
+        if ch.transport is not None:
+            raise ValueError(f"{self.name}: channel {channel!r} already has a port")
+        ch.transport = transport
+        ch.timing = timing
+        transport.open(_ChannelSink(self, ch))
+
+    def close(self) -> None:
+        if self._timer is not None:
+            self._timer.cancel()
+        for ch in self.channels.values():
+            if ch.transport is not None:
+                ch.transport.close()
+
+    # ---- transport events ---------------------------------------------------------------------
+
+    def host_attached(self, ch: Channel, host: LineSettings | None) -> None:
+        ch.attached = True
+        ch.to_host.clear()
+        ch.from_host.clear()
+        log.info("%s/%s: host attached", self.name, ch.name)
+        self._set_host(ch, host)
+
+    def host_detached(self, ch: Channel) -> None:
+        ch.attached = False
+        ch.to_host.clear()
+        ch.from_host.clear()
+        ch.reported_mismatch = ()
+        log.info("%s/%s: host detached", self.name, ch.name)
+        self._set_host(ch, None)
+
+    def host_line(self, ch: Channel, host: LineSettings) -> None:
+        self._set_host(ch, host)
+
+    def _set_host(self, ch: Channel, host: LineSettings | None) -> None:
+        now = self.clock.now()
+        self.device.advance(now)
+        ch.host = host
+        self.device.line_changed(host, now, ch.name)
+        self.pump()
+
+    def host_data(self, ch: Channel, data: bytes) -> None:
+        now = self.clock.now()
+        if self._traffic is not None:
+            self._traffic.record(now, self.name, ch.name, "rx", data, self.device.summarize("rx", data))
+        if ch.faults.hung:
+            return
+        ch.from_host.push(now, data)
+        self.pump()
+
+    # ---- the step -----------------------------------------------------------------------------
+
+    def call(self, action: Callable[[float], Any]) -> Any:
+        """Run `action(now)` on the device at the current device time, then let its effects flow."""
+        now = self.pump()
+        result = action(now)
+        self.pump(at_least=now)
+        return result
+
+    def pump(self, at_least: float | None = None) -> float:
+        """Bring the device and the ports up to the current device time, then re-arm the timer.
+        Returns the device time it brought them to."""
+        now = self.clock.now()
+        if at_least is not None:
+            now = max(now, at_least)
+        self._run_actions(now)
+        self._refresh_pacing()
+        for t, channel, data in self._due_input(now):
+            self.device.advance(t)
+            self.device.receive(data, t, channel)
+        self.device.advance(now)
+        self._collect_output()
+        self._write_due(now)
+        self._check_mismatch()
+        self._arm_timer()
+        return now
+
+    def _due_input(self, now: float) -> list[tuple[float, str, bytes]]:
+        """Host bytes whose wire time has ended, merged across channels in time order; bytes that
+        complete at the same instant (fast timing) stay together."""
+        due: list[tuple[float, str, bytes]] = []
+        for ch in self.channels.values():
+            if ch.from_host.per_char > 0:
+                due.extend((t, ch.name, bytes([b])) for t, b in ch.from_host.take_each_due(now))
+            else:
+                due.extend((t, ch.name, data) for t, data in ch.from_host.take_due(now))
+        due.sort(key=lambda item: item[0])
+        return due
+
+    def _refresh_pacing(self) -> None:
+        for ch in self.channels.values():
+            realistic = ch.timing == REALISTIC and self.device.pace_line
+            own = self.device.line_settings(ch.name)
+            ch.to_host.per_char = settings_char_time(own, own) if realistic else 0.0
+            host = ch.host or own
+            ch.from_host.per_char = settings_char_time(host, own) if realistic else 0.0
+
+    def _collect_output(self) -> None:
+        emissions = sorted(self.device.take_output(), key=lambda e: e.due)
+        for emission in emissions:
+            self._route(emission)
+        events = self.device.take_events()
+        if self._on_event is not None:
+            for event in events:
+                self._on_event(self.name, event)
+
+    def _route(self, emission: Emission) -> None:
+        ch = self.channels.get(emission.channel)
+        if ch is None or not ch.attached or ch.faults.hung or ch.faults.vanished:
+            return  # no output while detached: a real UART would send into the void
+        if ch.faults.drop_replies > 0:
+            ch.faults.drop_replies -= 1
+            return
+        data = emission.data
+        if ch.faults.corrupt_bytes > 0:
+            count = min(ch.faults.corrupt_bytes, len(data))
+            data = bytes(b ^ CORRUPT_MASK for b in data[:count]) + data[count:]
+            ch.faults.corrupt_bytes -= count
+        ch.to_host.push(emission.due + ch.faults.latency_s, data)
+
+    def _write_due(self, now: float) -> None:
+        for ch in self.channels.values():
+            for t, data in ch.to_host.take_due(now):
+                if ch.transport is None or not ch.attached:
+                    continue
+                ch.transport.write(data)
+                if self._traffic is not None:
+                    self._traffic.record(t, self.name, ch.name, "tx", data, self.device.summarize("tx", data))
+
+    def _check_mismatch(self) -> None:
+        for ch in self.channels.values():
+            if ch.host is None:
+                continue
+            own = self.device.line_settings(ch.name)
+            differing = mismatches(own, ch.host)
+            key = (tuple(differing), ch.host, own) if differing else ()
+            if key == ch.reported_mismatch:
+                continue
+            ch.reported_mismatch = key
+            if differing:
+                effect = self.device.mismatch_effect(ch.host, ch.name)
+                log.warning(
+                    "%s/%s: host uses %s, device expects %s%s",
+                    self.name,
+                    ch.name,
+                    _fill_unseen(ch.host, own).describe(),
+                    own.describe(),
+                    f"; {effect}" if effect else "",
+                )
+
+    def _next_due(self) -> float | None:
+        times = [self.device.next_deadline()]
+        for ch in self.channels.values():
+            times.append(ch.to_host.next_due())
+            times.append(ch.from_host.next_due())
+        times.extend(t for t, _ in self._actions)
+        present = [t for t in times if t is not None]
+        return min(present) if present else None
+
+    def _arm_timer(self) -> None:
+        due = self._next_due()
+        if due == self._timer_due and self._timer is not None:
+            return
+        if self._timer is not None:
+            self._timer.cancel()
+            self._timer = None
+        self._timer_due = due
+        if due is None or self._loop is None:
+            return
+        delay = self.clock.wall_delay(due)
+        if delay is not None:
+            self._timer = self._loop.call_later(delay, self._on_timer, due)
+
+    def _on_timer(self, due: float) -> None:
+        self._timer = None
+        self._timer_due = None
+        self.pump(at_least=due)
+
+    # ---- control operations -------------------------------------------------------------------
+
+    def reset(self) -> None:
+        """Factory reset: a fresh model from the profile, still attached to the same hosts."""
+        now = self.clock.now()
+        self.device = self._make_device(now)
+        for ch in self.channels.values():
+            ch.to_host.clear()
+            ch.from_host.clear()
+            ch.reported_mismatch = ()
+            if ch.attached:
+                self.device.line_changed(ch.host, now, ch.name)
+        self.pump()
+
+    def inject(self, channel: str, fault: str, params: dict[str, Any]) -> dict[str, Any]:
+        """Apply a port fault; returns the channel's fault state. Raises ValueError for bad input."""
+        ch = self.channels.get(channel)
+        if ch is None:
+            raise ValueError(
+                f"{self.name}: no port {channel!r} (this device has: {', '.join(self.channels)})"
+            )
+        seconds = _number(params, "seconds", None, minimum=0)
+        if fault == "disconnect":
+            self._disconnect(ch, seconds)
+        elif fault == "hang":
+            ch.faults.hung = True
+            ch.to_host.clear()
+            if seconds is not None:
+                self.after(seconds, lambda: setattr(ch.faults, "hung", False))
+        elif fault == "drop":
+            ch.faults.drop_replies += int(_number(params, "count", 1, minimum=1))
+        elif fault == "corrupt":
+            ch.faults.corrupt_bytes += int(_number(params, "count", 1, minimum=1))
+        elif fault == "latency":
+            ch.faults.latency_s = _number(params, "ms", 0, minimum=0) / 1000
+        elif fault == "clear":
+            if ch.faults.vanished and ch.transport is not None:
+                ch.transport.reappear()
+            ch.faults = Faults()
+        else:
+            raise ValueError(
+                f"unknown fault {fault!r}; one of: disconnect, hang, drop, corrupt, latency, clear"
+            )
+        self.pump()
+        return ch.faults.describe()
+
+    def _disconnect(self, ch: Channel, seconds: float | None) -> None:
+        if ch.transport is None or ch.faults.vanished:
+            return
+        ch.faults.vanished = True
+        ch.transport.vanish()
+        if ch.attached:
+            self.host_detached(ch)
+
+        def back() -> None:
+            if ch.faults.vanished and ch.transport is not None:
+                ch.faults.vanished = False
+                ch.transport.reappear()
+
+        if seconds is not None:
+            self.after(seconds, back)
+
+    # ---- device-time actions (fault expiry) ---------------------------------------------------
+
+    def after(self, seconds: float, action: Callable[[], None]) -> None:
+        self._actions.append((self.clock.now() + seconds, action))
+        self._actions.sort(key=lambda item: item[0])
+        self._arm_timer()
+
+    def _run_actions(self, now: float) -> None:
+        while self._actions and self._actions[0][0] <= now:
+            _, action = self._actions.pop(0)
+            action()
+
+
+def _number(params: dict[str, Any], name: str, default: float | None, minimum: float) -> Any:
+    value = params.get(name, default)
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | float) or value < minimum:
+        raise ValueError(f"{name} must be a number >= {minimum:g}, got {value!r}")
+    return value
+
+
+def _fill_unseen(host: LineSettings, own: LineSettings) -> LineSettings:
+    """The host's settings with what the transport cannot see taken from the device (assumed equal)."""
+    names = ("baud", "data_bits", "parity", "stop_bits", "rtscts", "xonxoff")
+    return LineSettings(
+        **{n: getattr(own, n) if getattr(host, n) is None else getattr(host, n) for n in names}
+    )

@@ -1,0 +1,273 @@
+"""A pseudo-terminal that a host program opens like a serial port.
+
+Linux facts this relies on (checked on 6.x):
+- Termios set by the host on the slave is readable from the master: baud (incl. BOTHER rates via
+  TCGETS2), CSTOPB, CRTSCTS, IXON/IXOFF. Parity and data bits are not (the pty forces CS8).
+- In packet mode (TIOCPKT) with EXTPROC set, each host `tcsetattr` yields a status byte with
+  TIOCPKT_IOCTL: the signal to re-read the host's settings. Data reads come prefixed with 0x00.
+- With no slave open, reads fail with EIO and poll reports POLLHUP level-triggered, so the master is
+  watched through an edge-triggered epoll: one event when the last host closes, one when a host next
+  configures the port or writes. No spinning while nobody is attached.
+- Bytes left unread in the slave's input queue reach the next opener; they are flushed at detach.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import errno
+import fcntl
+import logging
+import os
+import select
+import stat
+import struct
+import termios
+import tty
+from pathlib import Path
+
+from emulator.device import LineSettings
+from emulator.transports.base import PortSink, Transport
+
+log = logging.getLogger("stage_emu.pty")
+
+TIOCPKT = 0x5420
+TIOCGPTPEER = 0x5441
+TCGETS2 = 0x802C542A
+EXTPROC = 0x10000
+BOTHER = 0o010000
+CBAUD = 0o010017
+TIOCPKT_IOCTL = 0x40
+PTS_DIR = "/dev/pts/"
+
+_SPEEDS = {
+    getattr(termios, name): int(name[1:])
+    for name in dir(termios)
+    if name.startswith("B") and name[1:].isdigit() and name != "B0"
+}
+_ET_IN = select.EPOLLIN | select.EPOLLET | select.EPOLLHUP
+_ET_IN_OUT = _ET_IN | select.EPOLLOUT
+
+
+class PortError(Exception):
+    """The port cannot be created where asked; the message says why and what to do."""
+
+
+def host_settings(master: int) -> LineSettings:
+    """What the host configured on the slave, read through the master."""
+    iflag, _oflag, cflag, _lflag, ispeed, ospeed, _cc = termios.tcgetattr(master)
+    baud = _SPEEDS.get(ospeed) or _SPEEDS.get(ispeed)
+    if cflag & CBAUD == BOTHER:
+        raw = fcntl.ioctl(master, TCGETS2, bytes(44))
+        baud = struct.unpack_from("I", raw, 40)[0]
+    return LineSettings(
+        baud=baud,
+        data_bits=None,
+        parity=None,
+        stop_bits=2 if cflag & termios.CSTOPB else 1,
+        rtscts=bool(cflag & termios.CRTSCTS),
+        xonxoff=bool(iflag & (termios.IXON | termios.IXOFF)),
+    )
+
+
+def prepare_link(link: Path) -> None:
+    """Make room for our symlink: only a missing path or a stale link to a vanished pts may go."""
+    if not link.is_symlink():
+        if link.exists():
+            kind = "directory" if link.is_dir() else "file"
+            raise PortError(
+                f"{link} already exists and is a {kind}, not a stale pty link; "
+                "remove it or choose another link path"
+            )
+        return
+    target = os.readlink(link)
+    if not target.startswith(PTS_DIR):
+        raise PortError(f"{link} is a symlink to {target}, not to a pty; refusing to replace it")
+    if os.path.exists(target):
+        raise PortError(
+            f"{link} points to {target}, which is still open (another emulator?); stop it or remove the link"
+        )
+    link.unlink()
+
+
+class PtyTransport(Transport):
+    kind = "pty"
+
+    def __init__(self, link: Path, mode: int = 0o600, loop: asyncio.AbstractEventLoop | None = None) -> None:
+        self._link = link
+        self._mode = mode
+        self._loop = loop
+        self._sink: PortSink | None = None
+        self._master = -1
+        self._epoll: select.epoll | None = None
+        self._pts = ""
+        self._attached = False
+        self._host: LineSettings | None = None
+        self._pending = bytearray()
+
+    @property
+    def path(self) -> str:
+        return str(self._link)
+
+    @property
+    def device_path(self) -> str | None:
+        return self._pts or None
+
+    def open(self, sink: PortSink) -> None:
+        self._sink = sink
+        if self._loop is None:
+            self._loop = asyncio.get_running_loop()
+        prepare_link(self._link)
+        self._link.parent.mkdir(parents=True, exist_ok=True)
+        self._create()
+
+    def _create(self) -> None:
+        master, slave = os.openpty()
+        try:
+            tty.setraw(slave)
+            attrs = termios.tcgetattr(slave)
+            attrs[3] |= EXTPROC
+            termios.tcsetattr(slave, termios.TCSANOW, attrs)
+            self._pts = os.ttyname(slave)
+            os.chmod(self._pts, self._mode)
+        finally:
+            os.close(slave)
+        fcntl.ioctl(master, TIOCPKT, struct.pack("i", 1))
+        os.set_blocking(master, False)
+        self._master = master
+        self._epoll = select.epoll()
+        self._epoll.register(master, _ET_IN)
+        assert self._loop is not None
+        self._loop.add_reader(self._epoll.fileno(), self._on_ready)
+        os.symlink(self._pts, self._link)
+
+    def _destroy(self) -> None:
+        if self._epoll is not None:
+            assert self._loop is not None
+            self._loop.remove_reader(self._epoll.fileno())
+            self._epoll.close()
+            self._epoll = None
+        if self._master >= 0:
+            os.close(self._master)
+            self._master = -1
+        with contextlib.suppress(OSError):
+            if self._link.is_symlink() and os.readlink(self._link) == self._pts:
+                self._link.unlink()
+        self._pending.clear()
+        if self._attached:
+            self._attached = False
+            assert self._sink is not None
+            self._sink.host_detached()
+
+    def close(self) -> None:
+        self._destroy()
+
+    def vanish(self) -> None:
+        self._destroy()
+
+    def reappear(self) -> None:
+        if self._master < 0:
+            prepare_link(self._link)
+            self._create()
+
+    # ---- events -------------------------------------------------------------------------------
+
+    def _on_ready(self) -> None:
+        assert self._epoll is not None and self._sink is not None
+        events = 0
+        for _fd, mask in self._epoll.poll(0):
+            events |= mask
+        if events & select.EPOLLOUT:
+            self._flush()
+        while self._master >= 0:
+            try:
+                packet = os.read(self._master, 4096)
+            except BlockingIOError:
+                return
+            except OSError as exc:
+                if exc.errno == errno.EIO:
+                    self._on_hangup()
+                    return
+                raise
+            if not packet:
+                return
+            self._on_packet(packet)
+
+    def _on_packet(self, packet: bytes) -> None:
+        assert self._sink is not None
+        if packet[0] != 0 and not packet[0] & TIOCPKT_IOCTL:
+            return  # flush/flow status only (our own stale flush causes one): no host activity
+        if not self._attached:
+            self._attached = True
+            self._host = host_settings(self._master)
+            self._sink.host_attached(self._host)
+        if packet[0] == 0:
+            # A host that clears EXTPROC sends no ioctl packets: check its settings with its data.
+            self._recheck_settings()
+            if len(packet) > 1:
+                self._sink.host_data(packet[1:])
+        elif packet[0] & TIOCPKT_IOCTL:
+            self._recheck_settings()
+
+    def _recheck_settings(self) -> None:
+        assert self._sink is not None
+        current = host_settings(self._master)
+        if current != self._host:
+            self._host = current
+            self._sink.host_line(current)
+
+    def _on_hangup(self) -> None:
+        if not self._attached:
+            return
+        self._attached = False
+        self._pending.clear()
+        self._flush_stale()
+        assert self._sink is not None
+        self._sink.host_detached()
+
+    def _flush_stale(self) -> None:
+        """Drop output the departed host never read, so the next opener starts clean."""
+        try:
+            peer = fcntl.ioctl(self._master, TIOCGPTPEER, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        except OSError:
+            return
+        try:
+            termios.tcflush(peer, termios.TCIFLUSH)
+        finally:
+            os.close(peer)
+
+    # ---- output -------------------------------------------------------------------------------
+
+    def write(self, data: bytes) -> None:
+        if self._master < 0 or not self._attached:
+            return
+        self._pending += data
+        self._flush()
+
+    def _flush(self) -> None:
+        while self._pending and self._master >= 0:
+            try:
+                sent = os.write(self._master, self._pending)
+            except BlockingIOError:
+                break
+            except OSError as exc:
+                if exc.errno == errno.EIO:
+                    self._pending.clear()
+                    return
+                raise
+            del self._pending[:sent]
+        if self._epoll is not None and self._master >= 0:
+            self._epoll.modify(self._master, _ET_IN_OUT if self._pending else _ET_IN)
+
+
+def runtime_dir() -> Path:
+    """Per-user directory for port links and the control socket, created 0700 and checked."""
+    base = os.environ.get("XDG_RUNTIME_DIR")
+    path = Path(base) / "stage-emu" if base else Path(f"/tmp/stage-emu-{os.getuid()}")
+    path.mkdir(mode=0o700, parents=True, exist_ok=True)
+    info = path.lstat()
+    if not stat.S_ISDIR(info.st_mode) or info.st_uid != os.getuid():
+        raise PortError(f"{path} is not a directory owned by you; refusing to use it")
+    if stat.S_IMODE(info.st_mode) & 0o077:
+        os.chmod(path, 0o700)
+    return path

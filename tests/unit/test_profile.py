@@ -1,0 +1,170 @@
+"""Profile loading and validation: every error class names file, line and key."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+import tests.support.probe_device  # noqa: F401  (registers the `probe` family)
+from emulator.profile import ProfileError, load_profile
+from emulator.schema import (
+    Choice,
+    Derived,
+    Field,
+    Float,
+    Int,
+    ListOf,
+    MapOf,
+    Nullable,
+    SchemaError,
+    Str,
+    Struct,
+)
+
+PROBE = Path(__file__).parent.parent / "support" / "probe.yaml"
+
+
+def write(tmp_path: Path, name: str, text: str) -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def error_of(path: Path | str) -> str:
+    with pytest.raises(ProfileError) as info:
+        load_profile(str(path))
+    return str(info.value)
+
+
+def test_loads_into_frozen_dataclasses() -> None:
+    profile = load_profile(str(PROBE))
+    assert profile.family == "probe"
+    assert profile.line.baud == 9600
+    assert profile.config.knobs.pace_line is True
+    with pytest.raises(AttributeError):
+        profile.line.baud = 19200  # type: ignore[misc]
+
+
+def test_bad_baud_names_file_line_key_and_choices(tmp_path: Path) -> None:
+    path = write(tmp_path, "x.yaml", f"spec: 1\nextends: {PROBE}\nline:\n  baud: 14400\n")
+    assert error_of(path) == f"{path}:4: line.baud: 14400 is not one of 1200, 2400, 4800, 9600, 19200, 115200"
+
+
+def test_unknown_key_lists_allowed_keys(tmp_path: Path) -> None:
+    path = write(tmp_path, "x.yaml", "spec: 1\ndevice: probe\nknobs:\n  pace_lin: true\n")
+    assert error_of(path).endswith("x.yaml:4: knobs.pace_lin: unknown key; allowed here: pace_line")
+
+
+def test_wrong_type(tmp_path: Path) -> None:
+    path = write(tmp_path, "x.yaml", "spec: 1\ndevice: probe\nknobs:\n  pace_line: 3\n")
+    assert error_of(path).endswith("x.yaml:4: knobs.pace_line: 3 is not a boolean (true or false)")
+
+
+@pytest.mark.parametrize(
+    ("body", "expected"),
+    [
+        ("device: probe\n", "spec: is required (spec: 1)"),
+        ("spec: 2\ndevice: probe\n", "spec: 2 is not a supported version (only 1)"),
+        ("spec: 1\n", "device: is required; one of"),
+        ("spec: 1\ndevice: toaster\n", "device: 'toaster' is not one of"),
+        ("spec: 1\ndevice: probe\ndescription: [1]\n", "description: must be a string"),
+        ("- 1\n", "a profile must be a mapping"),
+        ("spec: 1\ndevice: probe\nline: {baud: 9600, baud: 4800}\n", "line.baud: duplicate key"),
+        ("spec: 1\ndevice: [probe\n", "not valid YAML"),
+        ("spec: 1\ndevice: !!python/object:os.system {}\n", "not valid YAML"),
+    ],
+)
+def test_top_level_errors(tmp_path: Path, body: str, expected: str) -> None:
+    assert expected in error_of(write(tmp_path, "x.yaml", body))
+
+
+def test_extends_merges_parent_first(tmp_path: Path) -> None:
+    write(
+        tmp_path, "base.yaml", "spec: 1\ndevice: probe\ndescription: base\nline: {baud: 4800, stop_bits: 2}\n"
+    )
+    child = write(tmp_path, "child.yaml", "spec: 1\nextends: base.yaml\nline: {baud: 19200}\n")
+    profile = load_profile(str(child))
+    assert (profile.line.baud, profile.line.stop_bits) == (19200, 2)
+    assert profile.description == "base"
+    assert [Path(p).name for p in profile.chain] == ["base.yaml", "child.yaml"]
+
+
+def test_extends_cycle_is_detected(tmp_path: Path) -> None:
+    write(tmp_path, "a.yaml", "spec: 1\nextends: b.yaml\n")
+    write(tmp_path, "b.yaml", "spec: 1\nextends: a.yaml\n")
+    message = error_of(tmp_path / "a.yaml")
+    assert "extends cycle: a -> b -> a" in message
+    assert "b.yaml:2: extends" in message
+
+
+def test_unknown_extends(tmp_path: Path) -> None:
+    path = write(tmp_path, "a.yaml", "spec: 1\nextends: nosuchprofile\n")
+    assert "a.yaml:2: extends: unknown profile 'nosuchprofile' (bundled profiles:" in error_of(path)
+
+
+def test_error_in_parent_points_at_parent(tmp_path: Path) -> None:
+    write(tmp_path, "base.yaml", "spec: 1\ndevice: probe\nline:\n  parity: mark\n")
+    child = write(tmp_path, "child.yaml", "spec: 1\nextends: base.yaml\n")
+    assert "base.yaml:4: line.parity: 'mark' is not one of 'none', 'even', 'odd'" in error_of(child)
+
+
+def test_overrides_apply_last() -> None:
+    profile = load_profile(str(PROBE), overrides={"line": {"baud": 115200}})
+    assert profile.line.baud == 115200
+
+
+def test_missing_file() -> None:
+    assert "no such profile" in error_of("definitely-not-bundled")
+
+
+NESTED = Struct(
+    "Nested",
+    (
+        Field("count", Int(1, 10), 3, "R-1", "a count"),
+        Field("ratio", Float(0, exclusive_minimum=True), 1.0),
+        Field("mode", Choice(("a", "b")), "a"),
+        Field("name", Str(max_length=4, pattern=r"[a-z]+", pattern_text="lower-case letters"), "ab"),
+        Field("axes", ListOf(Int(), length=3), Derived(lambda v: [v["count"]] * 3, "count per axis")),
+        Field("table", MapOf(Str(pattern="[XYZ]", pattern_text="an axis letter"), Int()), {}),
+        Field("limit", Nullable(Int(0)), None),
+    ),
+)
+
+
+@pytest.mark.parametrize(
+    ("value", "path", "message"),
+    [
+        ({"count": 0}, ("count",), "0 is out of range (>= 1, <= 10)"),
+        ({"count": 2.5}, ("count",), "2.5 is not an integer"),
+        ({"count": "3"}, ("count",), "'3' is not an integer"),
+        ({"ratio": 0}, ("ratio",), "0 is out of range (> 0)"),
+        ({"mode": "c"}, ("mode",), "'c' is not one of 'a', 'b'"),
+        ({"name": "abcde"}, ("name",), "'abcde' is longer than 4 characters"),
+        ({"name": "AB"}, ("name",), "'AB' is not lower-case letters"),
+        ({"axes": [1, 2]}, ("axes",), "has 2 items, expected exactly 3"),
+        ({"axes": [1, 2, "x"]}, ("axes", 2), "'x' is not an integer"),
+        ({"table": {"Q": 1}}, ("table", "Q"), "'Q' is not an axis letter"),
+        ({"limit": -1}, ("limit",), "-1 is out of range (>= 0)"),
+        ([], (), "[] is not a mapping"),
+    ],
+)
+def test_schema_error_classes(value: object, path: tuple, message: str) -> None:
+    with pytest.raises(SchemaError) as info:
+        NESTED.check(value, ())
+    assert info.value.path == path
+    assert info.value.message == message
+
+
+def test_schema_defaults_and_derived() -> None:
+    resolved = NESTED.check({"count": 5, "table": {"X": 1}}, ())
+    assert resolved.axes == (5, 5, 5)
+    assert resolved.table == {"X": 1}
+    assert resolved.limit is None
+
+
+def test_describe_rows_carry_rule_and_default() -> None:
+    rows = load_profile(str(PROBE)).describe()
+    by_path = {row.path: row for row in rows}
+    assert by_path["line.baud"].rule == "T-1"
+    assert by_path["knobs.pace_line"].default is True

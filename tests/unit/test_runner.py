@@ -1,0 +1,201 @@
+"""The device host on a manual clock: contract calls, pacing, timers, faults, traffic log."""
+
+from __future__ import annotations
+
+import io
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+import tests.support.probe_device  # noqa: F401  (registers the `probe` family)
+from emulator.clock import ManualClock
+from emulator.device import HostServices, LineSettings
+from emulator.line import FAST, REALISTIC
+from emulator.profile import load_profile
+from emulator.registry import family
+from emulator.runner import DeviceRunner
+from emulator.trafficlog import TrafficLog
+from tests.support.memory_transport import MemoryTransport
+
+PROBE = str(Path(__file__).parent.parent / "support" / "probe.yaml")
+CHAR = 10 / 9600
+
+
+@dataclass
+class Host:
+    clock: ManualClock
+    runner: DeviceRunner
+    port: MemoryTransport
+    events: list[tuple[str, dict]]
+
+
+def make(timing: str = REALISTIC, overrides: dict | None = None, traffic: TrafficLog | None = None) -> Host:
+    clock = ManualClock()
+    profile = load_profile(PROBE, overrides=overrides)
+    events: list[tuple[str, dict]] = []
+    runner = DeviceRunner(
+        lambda now: family("probe").factory("probe-0", profile, now, HostServices()),
+        clock,
+        traffic=traffic,
+        on_event=lambda name, ev: events.append((name, ev)),
+    )
+    port = MemoryTransport()
+    runner.attach_transport("main", port, timing)
+    port.attach(LineSettings(9600, None, None, 1, False, False))
+    return Host(clock, runner, port, events)
+
+
+def test_fast_timing_is_immediate() -> None:
+    h = make(FAST)
+    runner = h.runner
+    port = h.port
+    events = h.events
+    port.send(b"E hi\r")
+    assert port.take() == b"hi\r"
+    assert runner.device.received == [(0.0, b"E hi\r")]
+    assert events == [("probe-0", {"ev": "line", "text": "E hi"})]
+
+
+def test_realistic_input_reaches_device_at_end_of_wire_time() -> None:
+    h = make()
+    clock = h.clock
+    runner = h.runner
+    port = h.port
+    port.send(b"E hi\r")
+    assert runner.device.received == []
+    clock.advance(5 * CHAR)
+    times = [t for t, _ in runner.device.received]
+    assert times == pytest.approx([CHAR * (i + 1) for i in range(5)])
+
+
+def test_realistic_output_is_paced_per_character() -> None:
+    h = make()
+    clock = h.clock
+    port = h.port
+    port.send(b"B 100\r")
+    clock.advance(6 * CHAR)  # command fully received
+    assert port.take() == b""
+    clock.advance(50 * CHAR + 1e-9)
+    assert port.take() == b"x" * 50
+    clock.advance(50 * CHAR)
+    assert port.take() == b"x" * 50
+    # 100 bytes at 9600 8N1: 104.17 ms from the first start bit to the last stop bit
+
+
+def test_timers_fire_at_their_deadline() -> None:
+    h = make(FAST)
+    clock = h.clock
+    port = h.port
+    port.send(b"D 250 late\r")
+    clock.advance(0.2499)
+    assert port.take() == b""
+    clock.advance(0.0001)
+    assert port.take() == b"late\r"
+
+
+def test_pace_line_false_is_fast_even_on_realistic_port() -> None:
+    h = make(REALISTIC, {"knobs": {"pace_line": False}})
+    port = h.port
+    port.send(b"E x\r")
+    assert port.take() == b"x\r"
+
+
+def test_no_output_while_detached_and_host_settings_reach_device() -> None:
+    h = make(FAST)
+    runner = h.runner
+    port = h.port
+    assert runner.device.host == LineSettings(9600, None, None, 1, False, False)
+    runner.host_detached(runner.channels["main"])
+    assert runner.device.host is None
+    runner.call(lambda now: runner.device.control_input("say", {"text": "lost"}, now))
+    assert port.take() == b""
+
+
+def test_mismatch_logged_once_per_change(caplog: pytest.LogCaptureFixture) -> None:
+    h = make(FAST)
+    port = h.port
+    with caplog.at_level("WARNING"):
+        port.sink.host_line(LineSettings(19200, None, None, 1, False, False))
+        port.sink.host_line(LineSettings(19200, None, None, 1, False, False))
+        port.send(b"E x\r")
+        port.sink.host_line(LineSettings(19200, None, None, 2, False, False))
+    lines = [r.getMessage() for r in caplog.records]
+    assert lines == [
+        "probe-0/main: host uses 19200 8N1, device expects 9600 8N1; the probe ignores it",
+        "probe-0/main: host uses 19200 8N2, device expects 9600 8N1; the probe ignores it",
+    ]
+
+
+def test_faults_drop_corrupt_latency_hang() -> None:
+    h = make(FAST)
+    clock = h.clock
+    runner = h.runner
+    port = h.port
+    runner.inject("main", "drop", {"count": 1})
+    port.send(b"E one\rE two\r")
+    assert port.take() == b"two\r"
+    runner.inject("main", "corrupt", {"count": 2})
+    port.send(b"E ab\r")
+    assert port.take() == bytes([ord("a") ^ 0xFF, ord("b") ^ 0xFF]) + b"\r"
+    runner.inject("main", "latency", {"ms": 100})
+    port.send(b"E late\r")
+    assert port.take() == b""
+    clock.advance(0.1)
+    assert port.take() == b"late\r"
+    runner.inject("main", "latency", {"ms": 0})
+    runner.inject("main", "hang", {"seconds": 1})
+    port.send(b"E ignored\r")
+    assert port.take() == b""
+    clock.advance(1.0)
+    port.send(b"E back\r")
+    assert port.take() == b"back\r"
+
+
+def test_disconnect_fault_vanishes_and_returns() -> None:
+    h = make(FAST)
+    clock = h.clock
+    runner = h.runner
+    port = h.port
+    runner.inject("main", "disconnect", {"seconds": 2})
+    assert port.vanished and not runner.channels["main"].attached
+    clock.advance(2.0)
+    assert not port.vanished
+
+
+@pytest.mark.parametrize(
+    ("fault", "params", "message"),
+    [
+        ("explode", {}, "unknown fault 'explode'"),
+        ("drop", {"count": 0}, "count must be a number >= 1"),
+        ("latency", {"ms": "x"}, "ms must be a number >= 0"),
+        ("hang", {"seconds": -1}, "seconds must be a number >= 0"),
+    ],
+)
+def test_bad_faults_are_refused(fault: str, params: dict, message: str) -> None:
+    h = make(FAST)
+    runner = h.runner
+    with pytest.raises(ValueError, match=message):
+        runner.inject("main", fault, params)
+
+
+def test_reset_gives_a_fresh_model() -> None:
+    h = make(FAST)
+    runner = h.runner
+    port = h.port
+    port.send(b"E a\r")
+    assert runner.device.lines == 1
+    runner.reset()
+    assert runner.device.lines == 0
+    assert runner.device.host is not None
+
+
+def test_traffic_log_records_both_directions() -> None:
+    stream = io.StringIO()
+    h = make(FAST, traffic=TrafficLog(stream))
+    port = h.port
+    port.send(b"E ok\r")
+    entries = [json.loads(line) for line in stream.getvalue().splitlines()]
+    assert [(e["dir"], e["hex"]) for e in entries] == [("rx", "45 20 6f 6b 0d"), ("tx", "6f 6b 0d")]
+    assert entries[0]["device"] == "probe-0" and entries[0]["summary"] == "rx b'E ok\\r'"
