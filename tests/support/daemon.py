@@ -51,6 +51,7 @@ def start_daemon(
     workdir: Path, args: list[str], expect_ports: int, test_devices: bool = False
 ) -> RunningDaemon:
     """Run `stage-emu serve ARGS` with its links, socket and state under `workdir`."""
+    workdir.mkdir(parents=True, exist_ok=True)
     control = workdir / "control.sock"
     entry = ["-m", "tests.support.serve"] if test_devices else ["-m", "emulator.cli"]
     command = [

@@ -1,0 +1,36 @@
+"""Shared pytest options: `--port PATH --device FAMILY` runs the conformance suite on real hardware."""
+
+from __future__ import annotations
+
+import pytest
+
+FAMILIES = ("mp285", "ms2000")
+EMULATOR_ONLY = ("control", "timing", "modem")
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    group = parser.getgroup("stage-emu")
+    group.addoption("--port", help="serial port of a real controller: run tests/conformance against it")
+    group.addoption("--device", choices=FAMILIES, help="which controller is on --port")
+    group.addoption("--baud", type=int, help="baud rate of the real controller (default: the profile's)")
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    if config.getoption("--port") and not config.getoption("--device"):
+        raise pytest.UsageError("--port needs --device (mp285 or ms2000)")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    if not config.getoption("--port"):
+        return
+    family = config.getoption("--device")
+    for item in items:
+        marks = [m for m in EMULATOR_ONLY if item.get_closest_marker(m)]
+        if marks:
+            item.add_marker(
+                pytest.mark.skip(reason=f"needs the emulator ({', '.join(marks)}); running on a real port")
+            )
+        elif "conformance" not in item.nodeid.split("/"):
+            item.add_marker(pytest.mark.skip(reason="only the conformance suite runs against a real port"))
+        elif f"/{family}/" not in f"/{item.nodeid}" and any(f"/{f}/" in f"/{item.nodeid}" for f in FAMILIES):
+            item.add_marker(pytest.mark.skip(reason=f"suite for another controller than --device {family}"))
