@@ -107,15 +107,15 @@ class Daemon:
                 ready.append(line)
             log.info("%s: %s (%s) ready", spec.name, spec.profile.name, spec.profile.description)
         await self.control.start()
-        # Printed only once everything, control socket included, is up: the lines are the signal.
-        for line in ready:
-            self.out.write(json.dumps(line) + "\n")
-        self.out.flush()
+        # Announced only once everything, control socket included, is up: these are the signal.
         if self.options.ready_file is not None:
             _write_atomic(
                 self.options.ready_file,
                 json.dumps({"ports": ready, "control": str(self.control.path), "pid": os.getpid()}),
             )
+        for line in ready:
+            self.out.write(json.dumps(line) + "\n")
+        self.out.flush()
 
     def _publish(self, device: str, event: dict[str, Any]) -> None:
         if self.control is not None:

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import json
 import os
 import select
 import signal
+import socket
 import stat
 import subprocess
 import sys
@@ -243,9 +245,6 @@ def test_control_round_trips(probe_daemon: RunningDaemon) -> None:
 def test_malformed_control_requests_get_errors(
     probe_daemon: RunningDaemon, request_line: bytes, error: str
 ) -> None:
-    import json
-    import socket
-
     with socket.socket(socket.AF_UNIX) as sock:
         sock.settimeout(5)
         sock.connect(str(probe_daemon.control_path))
@@ -255,3 +254,42 @@ def test_malformed_control_requests_get_errors(
     with pytest.raises(ControlFailure):
         probe_daemon.control().request({"op": "nope"})
     assert probe_daemon.control().list()
+
+
+def test_time_scale_ready_file_and_traffic_log(tmp_path: Path) -> None:
+    ready = tmp_path / "ready.json"
+    traffic = tmp_path / "traffic.jsonl"
+    daemon = start_daemon(
+        tmp_path,
+        [
+            "--profile",
+            str(PROBE),
+            "--time-scale",
+            "20",
+            "--timing",
+            "fast",
+            "--ready-file",
+            str(ready),
+            "--log-traffic",
+            str(traffic),
+        ],
+        expect_ports=1,
+        test_devices=True,
+    )
+    try:
+        info = json.loads(ready.read_text())
+        assert info["ports"] == daemon.ports and info["control"] == str(daemon.control_path)
+        with serial.Serial(daemon.port("probe-0"), 9600, timeout=5) as port:
+            start = time.monotonic()
+            assert ask(port, b"D 2000 done\r", 5) == b"done\r"
+            # 2 s of device time at 20x: 0.1 s of wall time (generous bound for a loaded machine)
+            assert time.monotonic() - start < 1.0
+    finally:
+        assert daemon.stop() == 0
+    assert not ready.exists()
+    entries = [json.loads(line) for line in traffic.read_text().splitlines()]
+    assert [(e["dir"], bytes.fromhex(e["hex"])) for e in entries] == [
+        ("rx", b"D 2000 done\r"),
+        ("tx", b"done\r"),
+    ]
+    assert entries[1]["t"] - entries[0]["t"] == pytest.approx(2.0, abs=0.05)
