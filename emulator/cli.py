@@ -16,6 +16,7 @@ from emulator.daemon import Daemon, DaemonOptions
 from emulator.line import TIMINGS
 from emulator.profile import ProfileError, bundled_dir, bundled_names, load_profile
 from emulator.rig import load_rig, rig_from_profiles
+from emulator.schema import DerivedDefault, plain
 from emulator.transports.pty import PortError, runtime_dir
 from emulator.yamlsource import SourceError, load_located
 
@@ -145,18 +146,17 @@ def describe(profile: str, as_json: bool) -> None:
         _fail(str(exc))
     rows = loaded.describe()
     if as_json:
-        click.echo(json.dumps([row.__dict__ for row in rows], indent=2, default=str))
+        click.echo(json.dumps([row.__dict__ for row in rows], indent=2, default=str, ensure_ascii=False))
         return
     click.echo(f"{loaded.name} ({loaded.family}): {loaded.description}")
     width = max(len(row.path) for row in rows)
     for row in rows:
-        value = json.dumps(row.value, default=str)
-        default = (
-            row.default
-            if isinstance(row.default, str) and " " in row.default
-            else json.dumps(row.default, default=str)
-        )
-        mark = "" if value == default else "  *"
+        value = json.dumps(row.value, ensure_ascii=False)
+        if isinstance(row.default, DerivedDefault):
+            default, mark = str(row.default), ""
+        else:
+            default = json.dumps(plain(row.default), ensure_ascii=False)
+            mark = "" if row.value == plain(row.default) else "  *"
         click.echo(f"{row.path:<{width}}  {value:<14} default {default:<14} {row.rule:<11} {row.doc}{mark}")
 
 

@@ -85,7 +85,8 @@ class Device(ABC):
     #: channels (ports) the model talks on; most devices have just `main`
     channels: tuple[str, ...] = (MAIN,)
     #: False when the profile asks for unpaced output (MP-285 `pace_line: false`); the host then
-    #: delivers at once even on a `timing: realistic` port
+    #: delivers at once even on a `timing: realistic` port. Re-read on every pump, so a model may
+    #: change it at runtime (the MP-285 clears it while its UART model times a mismatched line).
     pace_line: bool = True
 
     def __init__(self, name: str, profile: Profile, now: float, services: HostServices) -> None:
@@ -143,5 +144,12 @@ class Device(ABC):
         raise ControlError(f"{self.name}: no input {name!r}")
 
     def summarize(self, direction: str, data: bytes) -> str | None:
-        """One-line decoded summary of traffic for the traffic log (`rx` from host, `tx` to host)."""
+        """One-line decoded summary of traffic for the traffic log (`rx` from host, `tx` to host).
+        `data` is what the host handed over or what left the port in one piece; on a paced port
+        that is one byte at a time, so a model that wants whole replies keeps its own context."""
+        return None
+
+    def forget_nonvolatile(self) -> None:
+        """Erase whatever the model keeps across power cycles (saved settings), before a factory
+        reset from the control channel. Nothing by default."""
         return None

@@ -296,6 +296,7 @@ class DeviceRunner:
     def reset(self) -> None:
         """Factory reset: a fresh model from the profile, still attached to the same hosts."""
         now = self.clock.now()
+        self.device.forget_nonvolatile()
         self.device = self._make_device(now)
         for ch in self.channels.values():
             ch.to_host.clear()

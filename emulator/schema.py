@@ -300,18 +300,40 @@ class KnobRow:
     type: str
 
 
-def describe_rows(struct: Struct, value: Any, prefix: str = "") -> list[KnobRow]:
-    """Flatten a resolved struct into rows (value, default, rule, meaning) in declaration order."""
+def describe_rows(
+    struct: Struct, value: Any, prefix: str = "", defaults: Mapping[str, Any] | None = None
+) -> list[KnobRow]:
+    """Flatten a resolved struct into rows (value, default, rule, meaning) in declaration order.
+    Per-key tables of structs (MapOf(Struct), e.g. axes) get one row per key and field; `defaults`
+    carries a table's per-key default entries, which take precedence over the field defaults."""
     rows: list[KnobRow] = []
+    defaults = defaults or {}
     for f in struct.fields:
         current = getattr(value, _attr(f.name))
         path = f"{prefix}{f.name}"
+        default = defaults.get(f.name, f.default)
         if isinstance(f.type, Struct):
-            rows.extend(describe_rows(f.type, current, path + "."))
+            nested = default if isinstance(default, dict) else None
+            rows.extend(describe_rows(f.type, current, path + ".", nested))
             continue
-        default = f.default.text if isinstance(f.default, Derived) else f.default
-        rows.append(KnobRow(path, plain(current), default, f.rule, f.doc, f.type.describe()))
+        if isinstance(f.type, MapOf) and isinstance(f.type.value, Struct) and current:
+            table = default if isinstance(default, dict) else {}
+            for key, entry in current.items():
+                rows.extend(describe_rows(f.type.value, entry, f"{path}.{key}.", table.get(key)))
+            continue
+        shown = DerivedDefault(default.text) if isinstance(default, Derived) else default
+        rows.append(KnobRow(path, plain(current), shown, f.rule, f.doc, f.type.describe()))
     return rows
+
+
+@dataclass(frozen=True)
+class DerivedDefault:
+    """The default of a field computed from other values: only its description is known."""
+
+    text: str
+
+    def __str__(self) -> str:
+        return f"({self.text})"
 
 
 def plain(value: Any) -> Any:

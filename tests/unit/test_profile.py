@@ -20,6 +20,7 @@ from emulator.schema import (
     SchemaError,
     Str,
     Struct,
+    describe_rows,
 )
 
 PROBE = Path(__file__).parent.parent / "support" / "probe.yaml"
@@ -168,3 +169,28 @@ def test_describe_rows_carry_rule_and_default() -> None:
     by_path = {row.path: row for row in rows}
     assert by_path["line.baud"].rule == "T-1"
     assert by_path["knobs.pace_line"].default is True
+
+
+AXIS = Struct("Axis", (Field("pitch", Float(0), 6.35, "R-2", "screw pitch"), Field("gain", Int(), 10)))
+TABLES = Struct(
+    "Tables",
+    (
+        Field("axes", MapOf(Str(), AXIS), {"X": {}, "Z": {"pitch": 1.5}}, "R-3", "per-axis mechanics"),
+        Field("count", Int(), 3),
+        Field("double", Int(), Derived(lambda v: 2 * v["count"], "twice count")),
+    ),
+)
+
+
+def test_describe_rows_flatten_per_key_tables_with_their_defaults() -> None:
+    resolved = TABLES.check({"axes": {"X": {"gain": 4}, "Z": {"pitch": 1.5}}}, ())
+    rows = {row.path: row for row in describe_rows(TABLES, resolved)}
+    assert list(rows) == ["axes.X.pitch", "axes.X.gain", "axes.Z.pitch", "axes.Z.gain", "count", "double"]
+    assert (rows["axes.X.gain"].value, rows["axes.X.gain"].default) == (4, 10)
+    assert (rows["axes.Z.pitch"].value, rows["axes.Z.pitch"].default, rows["axes.Z.pitch"].rule) == (
+        1.5,
+        1.5,
+        "R-2",
+    )
+    assert rows["double"].value == 6
+    assert str(rows["double"].default) == "(twice count)"

@@ -186,7 +186,11 @@ def test_reset_gives_a_fresh_model() -> None:
     port = h.port
     port.send(b"E a\r")
     assert runner.device.lines == 1
+    old = runner.device
+    forgotten: list[object] = []
+    old.forget_nonvolatile = lambda: forgotten.append(old)
     runner.reset()
+    assert forgotten == [old], "a factory reset erases the old model's saved settings first"
     assert runner.device.lines == 0
     assert runner.device.host is not None
 
