@@ -1,0 +1,13 @@
+"""ASI MS-2000 stage controller family: profile schema and model, registered as `ms2000`."""
+
+from __future__ import annotations
+
+from emulator import registry
+from emulator.devices.ms2000.config import SCHEMA
+from emulator.devices.ms2000.controller import MS2000
+
+FAMILY = registry.register(
+    registry.Family(
+        "ms2000", "ASI MS-2000 stage controller (ASCII, low-level binary, modules)", SCHEMA, MS2000
+    )
+)

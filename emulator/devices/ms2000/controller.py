@@ -1,0 +1,559 @@
+"""The ASI MS-2000 controller model (sans-I/O, emulator/device.py).
+
+This file owns the serial line (garbling, 0xFF control sequences, line assembly, the queue behind a
+blocking command), time (the scheduler), the axes and move groups with their completion effects.
+Power, reset and non-volatile memory are in power.py, the control channel in surface.py, command
+handlers in commands/, low-level frames in lowlevel.py, reports in info.py, buttons in buttons.py,
+TTL in ttl.py, and each firmware module in modules/.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from emulator.device import MAIN, Device, Emission, HostServices, LineSettings
+from emulator.devices.ms2000.axis import LOWER, UPPER, Activity, Axis
+from emulator.devices.ms2000.buttons import TTL_ENABLE_BIT, Buttons
+from emulator.devices.ms2000.calls import Call, CommandError, Pending, Rendered, Reply
+from emulator.devices.ms2000.commands import BaseCommands
+from emulator.devices.ms2000.config import baud_of
+from emulator.devices.ms2000.flash import Flash
+from emulator.devices.ms2000.lowlevel import LowLevel
+from emulator.devices.ms2000.modules import MODULES, Module
+from emulator.devices.ms2000.power import PowerMixin
+from emulator.devices.ms2000.scheduler import Scheduler, Timer
+from emulator.devices.ms2000.settings import (
+    CardAuto,
+)
+from emulator.devices.ms2000.surface import ControlSurfaceMixin
+from emulator.devices.ms2000.ttl import BASE_OUT_MODES, Ttl
+from emulator.motion import round_half_away
+from emulator.nvstore import NvStore
+from emulator.profile import Profile
+from protocols import ms2000 as proto
+from protocols.ms2000 import ErrorCode, Shape
+
+ERROR_LOG_SIZE = 64
+TRAJECTORY_SIZE = 500
+#: joystick dead band (MS-83)
+DEAD_BAND = 0.02
+
+
+@dataclass(eq=False)
+class MoveGroup:
+    """Axes started by one command: it completes when the last of them has landed and waited."""
+
+    activity: Activity = Activity.MOVE
+    axes: set[Axis] = field(default_factory=set)
+
+
+def garble(data: bytes) -> bytes:
+    """MS-4: each byte XOR 0x55, never CR nor 0xFF."""
+    out = bytearray()
+    for b in data:
+        g = b ^ 0x55
+        out.append({0x0D: 0x0E, 0xFF: 0xFE}.get(g, g))
+    return bytes(out)
+
+
+class MS2000(PowerMixin, ControlSurfaceMixin, Device):
+    def __init__(self, name: str, profile: Profile, now: float, services: HostServices) -> None:
+        super().__init__(name, profile, now, services)
+        self.cfg = profile.config
+        self.knobs = self.cfg.knobs
+        self.servo_s = self.cfg.servo_ms / 1000
+        self.scheduler = Scheduler()
+        self._now = now
+        self._outbox: list[Emission] = []
+        self._events: list[dict[str, Any]] = []
+        identity = {
+            "build": self.cfg.build_name,
+            "version": self.cfg.version,
+            "axes": list(self.cfg.motor_axes),
+        }
+        self.flash = Flash(NvStore(services.state_dir, self.cfg.device_id), identity)
+        self.axes = [
+            Axis(
+                self,
+                i,
+                letter,
+                self.cfg.axes[letter],
+                self._factory_axis(letter),
+                self.factory_auto(letter),
+                now,
+            )
+            for i, letter in enumerate(self.cfg.motor_axes)
+        ]
+        self.card = self._factory_card()
+        self.card_auto = CardAuto()
+        self.modules: dict[str, Module] = {n: MODULES[n](self) for n in self.cfg.modules if n in MODULES}
+        self.ttl = Ttl(self)
+        self.buttons = Buttons(self)
+        self.low = LowLevel(self)
+        self.commands = BaseCommands(self)
+        self.handlers: dict[str, Callable[[Call], Reply | Pending]] = self.commands.table()
+        self.shapes = {key: shape for key, (shape, _) in proto.QUERY_SHAPES.items()}
+        for module in self.modules.values():
+            self.handlers.update(module.handlers())
+            self.shapes.update({key: shape for key, (shape, _) in module.query_shapes.items()})
+        self.error_log: deque[int] = deque(maxlen=ERROR_LOG_SIZE)
+        self.trajectory_log: deque[str] = deque(maxlen=TRAJECTORY_SIZE)
+        self.moves = 0
+        self.dip = {f"sw{n}": getattr(self.cfg.dip_switches, f"sw{n}") for n in range(1, 9)}
+        self.baud = baud_of(self.dip["sw4"], self.dip["sw5"])
+        self.joystick = (0.0, 0.0)
+        self.log_since = now
+        self.user_counter = 0
+        self.lcd_text: str | None = None
+        self.lcd_inches = False
+        self.ensync_level = 0
+        self.az_fail: set[str] = set()
+        self.last_relative: list[tuple[str, float | None]] = []
+        self.low_level = False
+        self._line = bytearray()
+        self._overflow = False
+        self._ff = False
+        self._queue: deque[bytes | None] = deque()
+        self._pending: tuple[Pending, bool, Timer] | None = None
+        self._silenced = False
+        self._host_seen: LineSettings | None = None
+        self._host_declared: dict[str, Any] = {}
+        self._booted_at = now
+        self._clock_timer: Timer | None = None
+        self._saved_positions: tuple[int, ...] | None = None
+        self._power_up(now, cold=True)
+
+    # ---- Device contract: time ----------------------------------------------------------------
+
+    def _touch(self, now: float) -> None:
+        if now > self._now:
+            self._now = now
+
+    def advance(self, now: float) -> None:
+        self._touch(now)
+        self.scheduler.run_due(now)
+        self._persist_idle_positions(now)
+
+    def next_deadline(self) -> float | None:
+        return self.scheduler.next_due()
+
+    def take_output(self) -> list[Emission]:
+        out, self._outbox = self._outbox, []
+        return out
+
+    def take_events(self) -> list[dict[str, Any]]:
+        out, self._events = self._events, []
+        return out
+
+    def push_event(self, event: dict[str, Any]) -> None:
+        self._events.append(event)
+
+    # ---- the line (MS-1…MS-12, MS-119) --------------------------------------------------------
+
+    def line_settings(self, channel: str = MAIN) -> LineSettings:
+        return LineSettings(self.baud, 8, "none", self.card.stop_bits, False, False)
+
+    def line_changed(self, host: LineSettings | None, now: float, channel: str = MAIN) -> None:
+        self._touch(now)
+        self._host_seen = host
+        # the transport now reports what it can see; declarations of what it cannot see stay
+        self._host_declared = (
+            {}
+            if host is None
+            else {k: v for k, v in self._host_declared.items() if k in ("data_bits", "parity")}
+        )
+
+    def host_line(self) -> LineSettings | None:
+        seen = self._host_seen or LineSettings()
+        if self._host_seen is None and not self._host_declared:
+            return None
+        merged = {
+            n: getattr(seen, n) for n in ("baud", "data_bits", "parity", "stop_bits", "rtscts", "xonxoff")
+        }
+        merged.update(self._host_declared)
+        return LineSettings(**merged)
+
+    def _garbles(self, host: LineSettings | None = None) -> bool:
+        host = host or self.host_line()
+        if host is None or self.knobs.line_mismatch != "garble":
+            return False
+        own = self.line_settings()
+        return any(
+            getattr(host, n) is not None and getattr(host, n) != getattr(own, n)
+            for n in ("baud", "data_bits", "parity")
+        )
+
+    def mismatch_effect(self, host: LineSettings, channel: str = MAIN) -> str:
+        own = self.line_settings()
+        if self._garbles(host):
+            return "traffic will be garbled (line_mismatch=garble)"
+        if any(getattr(host, n) not in (None, getattr(own, n)) for n in ("baud", "data_bits", "parity")):
+            return "the mismatch is ignored (line_mismatch=ignore)"
+        if host.stop_bits not in (None, own.stop_bits):
+            return "harmless: the controller samples only the first stop bit"
+        return "harmless: the controller ignores flow control"
+
+    def receive(self, data: bytes, now: float, channel: str = MAIN) -> None:
+        self._touch(now)
+        if channel != MAIN or self._silenced:
+            return
+        if self._garbles():
+            data = garble(data)
+        for byte in data:
+            if self._silenced:
+                break
+            self._byte(byte, now)
+        self.scheduler.run_due(now)
+        self._persist_idle_positions(now)
+
+    def _byte(self, byte: int, t: float) -> None:
+        if self._ff:
+            self._ff = False
+            self._control_sequence(byte, t)
+        elif byte == proto.CONTROL:
+            self._ff = True
+        elif self.low_level:
+            self.low.feed(byte, t)
+        elif byte == 0x0D:
+            line = None if self._overflow else bytes(self._line)
+            self._line.clear()
+            self._overflow = False
+            self._on_line(line, t)
+            self.scheduler.run_due(t)
+        elif len(self._line) >= self.knobs.max_line:
+            self._overflow = True
+        else:
+            self._line.append(byte)
+
+    def _control_sequence(self, byte: int, t: float) -> None:
+        if byte == 0x42:  # 'B'
+            if "LL COMMANDS" in self.cfg.modules:
+                self.low_level = True
+                self._line.clear()
+                self._overflow = False
+                self.low.reset()
+        elif byte == 0x41:  # 'A'
+            self.low_level = False
+            self.low.decoder.reset()
+        elif byte == 0x52:  # 'R'
+            self.software_reset(t)
+        elif byte == 0x48:  # 'H'
+            self.card.vb_decimals = 1
+        elif byte == 0x54:  # 'T'
+            self.card.vb_decimals = 0
+
+    def _on_line(self, line: bytes | None, t: float) -> None:
+        if self._pending is not None:
+            if line is not None and self._is_halt(line):
+                self._cancel_pending(t, reply=True)
+                self._execute(line, t)
+                self._drain(t)
+            else:
+                self._queue.append(line)
+            return
+        self._execute(line, t)
+
+    @staticmethod
+    def _is_halt(line: bytes) -> bool:
+        spec = proto.split_command(line.decode("latin-1")).spec
+        return spec is not None and spec.key == "\\"
+
+    def _execute(self, line: bytes | None, t: float) -> None:
+        cr_only = bool(self.card.vb_flags & 8)
+        result = self._dispatch(line, t)
+        if isinstance(result, Pending):
+            timer = self.scheduler.at(result.due, self._finish_pending)
+            self._pending = (result, cr_only, timer)
+        else:
+            self._send(result, t, cr_only)
+
+    def _dispatch(self, line: bytes | None, t: float) -> Reply | Pending:
+        if line is None:
+            return self.error(ErrorCode.UNDEFINED)
+        text = line.decode("latin-1")
+        if proto.is_blank(text):
+            return (
+                Reply(())
+                if self.knobs.empty_line_reply == "ignore"
+                else self.error(ErrorCode.UNKNOWN_COMMAND)
+            )
+        parts = proto.split_command(text)
+        handler = self.handlers.get(parts.spec.key) if parts.spec is not None else None
+        if parts.spec is None or handler is None:
+            return self.error(ErrorCode.UNKNOWN_COMMAND)
+        call = Call(parts.spec, tuple(proto.parse_items(parts.args)), parts.args, t)
+        try:
+            return handler(call)
+        except CommandError as exc:
+            return self.error(exc.code)
+
+    def _finish_pending(self, t: float) -> None:
+        if self._pending is None:
+            return
+        pending, cr_only, _ = self._pending
+        self._pending = None
+        self._send(pending.finish(t), t, cr_only)
+        self._drain(t)
+
+    def _cancel_pending(self, t: float, reply: bool) -> None:
+        if self._pending is None:
+            return
+        pending, cr_only, timer = self._pending
+        self._pending = None
+        timer.cancel()
+        pending.cancel(t)
+        if reply:
+            self._send(self.error(ErrorCode.HALTED), t, cr_only)
+
+    def _drain(self, t: float) -> None:
+        while self._queue and self._pending is None and not self._silenced:
+            self._execute(self._queue.popleft(), t)
+
+    def silence(self) -> None:
+        """`SP` alone: ignore all input until a power cycle (MS-113)."""
+        self._silenced = True
+        self._queue.clear()
+        self._line.clear()
+
+    # ---- output -------------------------------------------------------------------------------
+
+    def error(self, code: int) -> Reply:
+        return Reply.text(proto.error_reply(code))
+
+    def ack(self) -> Reply:
+        return Reply.text(proto.ack(self.knobs.ack_trailing_space))
+
+    def render(self, key: str, shape: Shape | None = None) -> Rendered:
+        """How to print a reply of command `key`: its query shape after `reply_shape_overrides`
+        (MS-35…MS-38) unless the reply form has a fixed `shape`."""
+        if shape is None:
+            overrides = self.knobs.reply_shape_overrides
+            shape = Shape(overrides[key]) if key in overrides else self.shapes.get(key, Shape.A_AXIS)
+        return Rendered(shape, self.knobs.reply_trailing_space, self.card.vb_decimals)
+
+    def _send(self, reply: Reply, t: float, cr_only: bool) -> None:
+        if reply.lines:
+            self.send_raw(proto.frame(reply.lines, cr_only), t)
+
+    def send_raw(self, data: bytes, t: float) -> None:
+        if self._garbles():
+            data = garble(data)
+        self._outbox.append(Emission(t, data))
+
+    def unsolicited(self, text: str, t: float) -> None:
+        """An unsolicited line with the current terminator (MS-18, MS-96)."""
+        self.send_raw(proto.frame([text.encode("latin-1")], bool(self.card.vb_flags & 8)), t)
+
+    def where(self, units: float) -> str:
+        return proto.where(units, self.card.vb_decimals)
+
+    # ---- error log (MS-41) --------------------------------------------------------------------
+
+    def log_error(self, code: int) -> None:
+        self.error_log.append(int(code))
+
+    def record_sample(self, axis: Axis, t: float) -> None:
+        """A DUMP trajectory sample at each leg boundary (MS-108)."""
+        velocity = axis.traj.vel(t)
+        vmax = axis.max_speed * axis.counts_per_mm
+        dac = 128 + round(127 * max(-1.0, min(1.0, velocity / vmax))) if vmax else 128
+        ms = round_half_away((t - self._booted_at) * 1000)
+        self.trajectory_log.append(f"{ms} {axis.letter} {axis.target} {round_half_away(axis.pos(t))} {dac}")
+
+    # ---- axes and moves -----------------------------------------------------------------------
+
+    def axis_named(self, letter: str) -> Axis | None:
+        return next((a for a in self.axes if a.letter == letter), None)
+
+    def focus_axis(self) -> Axis | None:
+        """The axis ZS and the TTL Z-stack step (MS-94); CRISP's `UL F` would move it."""
+        return self.axis_named("Z")
+
+    def relative_goal(self, axis: Axis, delta_mm: float, t: float) -> float:
+        """R: the current target (the actual position if manual motion intervened) plus the
+        distance quantised to whole counts (MS-45, MS-51)."""
+        base = round_half_away(axis.pos(t)) if axis.activity is Activity.MANUAL else axis.target
+        return base + round_half_away(axis.s.polarity * delta_mm * axis.counts_per_mm)
+
+    def start_moves(
+        self, goals: list[tuple[Axis, float]], t: float, activity: Activity = Activity.MOVE
+    ) -> None:
+        """Start a commanded move of several axes together (MS-51, MS-52, MS-64)."""
+        group = MoveGroup(activity)
+        for axis, goal in goals:
+            if not axis.enabled:
+                continue
+            self.leave_group(axis)
+            axis.group = group
+            group.axes.add(axis)
+            axis.reset_extremes(t)
+            axis.move_to(t, goal, activity)
+        if group.axes:
+            self.moves += 1
+
+    def leave_group(self, axis: Axis) -> None:
+        if axis.group is not None:
+            axis.group.axes.discard(axis)
+            axis.group = None
+
+    def axis_finished(self, axis: Axis, t: float) -> None:
+        group = axis.group
+        axis.group = None
+        if group is None:
+            return
+        group.axes.discard(axis)
+        if not group.axes:
+            self._move_complete(group, [axis.letter], t)
+
+    def _move_complete(self, group: MoveGroup, letters: list[str], t: float) -> None:
+        self.push_event(
+            {
+                "ev": "move_complete",
+                "t": t,
+                "positions": {a.letter: self.where(a.units(t)) for a in self.axes},
+            }
+        )
+        if self.card.vb_flags & 1:
+            self.unsolicited("N", t)
+        if self.card.vb_flags & 32:
+            self.unsolicited(":A " + " ".join(self.where(a.units(t)) for a in self.axes), t)
+        if group.activity is Activity.MOVE:
+            self.ttl.pulse(t)
+        for module in self.modules.values():
+            module.move_complete(letters, t)
+
+    def halt_all(self, t: float) -> bool:
+        """Stop every motion and module activity (MS-76); True if a commanded move was running."""
+        busy = any(a.busy(t) for a in self.axes)
+        for axis in self.axes:
+            self.leave_group(axis)
+            axis.stop(t)
+        for module in self.modules.values():
+            module.halt(t)
+        return busy
+
+    def zero_all(self, t: float) -> None:
+        """ZERO (MS-70): every axis reads 0, nothing moves."""
+        for axis in self.axes:
+            axis.sample(t)
+            axis.origin += axis.user_mm(t)
+
+    def move_all_to_zero(self, t: float) -> None:
+        self.start_moves([(a, a.counts_of(0.0)) for a in self.axes], t)
+
+    def enable_motor(self, axis: Axis, t: float) -> None:
+        if not axis.enabled:
+            axis.stop(t)
+        axis.enabled = True
+
+    def disable_motor(self, axis: Axis, t: float) -> None:
+        self.leave_group(axis)
+        axis.stop(t)
+        axis.enabled = False
+
+    def set_manual_enabled(self, axis: Axis, enabled: bool, t: float) -> None:
+        axis.s.manual_enabled = enabled
+        if not enabled and axis.activity is Activity.MANUAL:
+            axis.stop(t)
+
+    # ---- manual inputs (MS-83, MS-84) ---------------------------------------------------------
+
+    def manual_inverted(self, axis: Axis) -> bool:
+        switch = {2: "sw8", 3: "sw7"}.get(axis.s.input_device)
+        return switch is not None and self.dip[switch] == "down"
+
+    def joystick_velocity(self, axis: Axis) -> float:
+        deflection = {2: self.joystick[0], 3: self.joystick[1]}.get(axis.s.input_device, 0.0)
+        if abs(deflection) < DEAD_BAND or not axis.s.manual_enabled:
+            return 0.0
+        if self.manual_inverted(axis):
+            deflection = -deflection
+        share = self.card.js_fast if self.buttons.fast else self.card.js_slow
+        return deflection * share / 100 * axis.max_speed
+
+    def resume_manual(self, axis: Axis, t: float) -> None:
+        velocity = self.joystick_velocity(axis)
+        if velocity:
+            axis.manual(t, velocity)
+
+    def _set_joystick(self, x: float, y: float, t: float) -> None:
+        self.joystick = (x, y)
+        for axis in self.axes:
+            if axis.s.input_device in (2, 3):
+                axis.manual(t, self.joystick_velocity(axis))
+
+    def _turn_wheel(self, counts: float, t: float) -> None:
+        ratio = 1.0 if self.buttons.fast else self.card.js_slow / self.card.js_fast
+        um = counts * self.cfg.wheel_um_per_count * self.card.js_wheel / 100 * ratio
+        for axis in self.axes:
+            if axis.s.input_device == 22 and axis.s.manual_enabled:
+                axis.nudge(t, axis.s.polarity * um / 1000 * axis.counts_per_mm)
+
+    # ---- status characters (MS-81) ------------------------------------------------------------
+
+    def left_char(self, axis: Axis, t: float) -> str:
+        if axis.at_limit(t, UPPER):
+            return "U"
+        if axis.at_limit(t, LOWER):
+            return "L"
+        if not axis.enabled:
+            return "D"
+        return self.buttons.left_char(t) or " "
+
+    def busy(self, t: float) -> bool:
+        return any(a.busy(t) for a in self.axes)
+
+    # ---- TTL and ENSYNC -----------------------------------------------------------------------
+
+    def out0_module(self, mode: int) -> Module | None:
+        return next((m for m in self.modules.values() if mode in m.out0_modes), None)
+
+    def out0_modes(self) -> set[int]:
+        modes = set(BASE_OUT_MODES)
+        for module in self.modules.values():
+            modes |= module.out0_modes
+        return modes
+
+    def in0_module(self, mode: int) -> Module | None:
+        return next((m for m in self.modules.values() if mode in m.in0_modes), None)
+
+    def in0_available(self, mode: int) -> bool:
+        if mode == 0:
+            return True
+        module = self.in0_module(mode)
+        interrupt = any(m.provides_in0_interrupt for m in self.modules.values())
+        return module is not None and interrupt
+
+    def in0_edge(self, t: float) -> None:
+        """A rising edge on IN0 (MS-90); BE bit 4 disables the TTL inputs (MS-86)."""
+        if not self.card.button_enable & TTL_ENABLE_BIT:
+            return
+        self.in0_function(t, self.card.ttl_in)
+
+    def in0_function(self, t: float, mode: int) -> None:
+        module = self.in0_module(mode) if mode else None
+        if module is not None:
+            module.in0_trigger(mode, t)
+
+    def ensync_toggle(self, t: float) -> None:
+        self.ensync_level ^= 1
+
+    # ---- modules ------------------------------------------------------------------------------
+
+    def modules_by_priority(self) -> list[Module]:
+        return sorted(self.modules.values(), key=lambda m: m.button_priority)
+
+    def report_axes(self) -> list[Axis]:
+        """Axes reported by IN0 mode 5: a module's selection (RING BUFFER's `RM Y`, MS-RB-4) or all."""
+        masks = [m for m in (module.report_mask() for module in self.modules.values()) if m is not None]
+        if not masks:
+            return list(self.axes)
+        return [a for a in self.axes if masks[0] & (1 << a.index)]
+
+    # ---- traffic log --------------------------------------------------------------------------
+
+    def summarize(self, direction: str, data: bytes) -> str | None:
+        return proto.summarize(direction, data)

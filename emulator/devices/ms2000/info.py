@@ -1,0 +1,122 @@
+"""Text reports: INFO (MS-106), BUILD X (MS-102) and the DUMP buffers (MS-108)."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+from emulator.devices.ms2000.config import INPUT_DEVICES
+from protocols.ms2000 import fixed
+
+if TYPE_CHECKING:
+    from emulator.devices.ms2000.axis import Axis
+    from emulator.devices.ms2000.controller import MS2000
+
+LEFT_WIDTH = 33
+LABEL_WIDTH = 13
+VALUE_WIDTH = 10
+
+
+def _item(label: str, value: str, suffix: str = "") -> str:
+    return f"{label:<{LABEL_WIDTH}}:{value:>{VALUE_WIDTH}}{suffix}"
+
+
+def _row(left: str, right: str) -> str:
+    return f"{left:<{LEFT_WIDTH}}{right}"
+
+
+def info_block(ctl: MS2000, axis: Axis, t: float) -> list[str]:
+    """The INFO report of one axis: 21 rows of two items, left item padded to 33 characters."""
+    s = axis.s
+    c = s.counts_per_mm
+    servo_ms = ctl.cfg.servo_ms
+    steps = max(1, round(s.accel_ms / servo_ms))
+    vmax_enc = math.floor(min(s.speed, axis.max_speed) * c * servo_ms / 1000)
+    dv_enc = vmax_enc // steps
+    pc_tag = "[PC]" if ctl.knobs.info_fix_pc_tag else "[PC}"
+    position = axis.pos(t)
+    velocity = axis.traj.vel(t)
+    vmax = axis.max_speed * c
+    dac = 128 + round(127 * max(-1.0, min(1.0, velocity / vmax))) if vmax else 128
+    settle = fixed(ctl.knobs.landing_ms, 0)
+    sign = -1 if ctl.manual_inverted(axis) else 1
+    return [
+        _row(
+            f"{'Axis Name':<{LABEL_WIDTH}}:  {axis.letter}",
+            f"{'Limits Status':<{LABEL_WIDTH}}: {ctl.left_char(axis, t)}",
+        ),
+        _row(
+            _item("Input Device", INPUT_DEVICES.get(s.input_device, "NONE"), " [J]"),
+            _item("In_Dev Sign", str(sign)),
+        ),
+        _row(
+            _item("Max Lim", fixed(axis.user_of_machine_mm(axis.auto.soft_upper), 3), " [SU]"),
+            _item("Min Lim", fixed(axis.user_of_machine_mm(axis.auto.soft_lower), 3), " [SL]"),
+        ),
+        _row(_item("Ramp Time", str(s.accel_ms), " (ms)[AC]"), _item("Max Ramp Stps", str(steps))),
+        _row(
+            _item("Run Speed", fixed(min(s.speed, axis.max_speed), 5), "(mm/s)[S]"),
+            _item("vmax_enc", str(vmax_enc)),
+        ),
+        _row(
+            _item("Servo Lp Time", str(servo_ms), " (ms)"),
+            _item("Ramp Length", str(dv_enc * steps * (steps - 1)), " (enc)"),
+        ),
+        _row(_item("dv_enc", str(dv_enc)), _item("LL Axis ID", str(s.ll_id))),
+        _row(
+            _item("Drift Error", fixed(s.drift_error, 6), " (mm)[E]"),
+            _item("enc_drift_err", str(math.floor(s.drift_error * c))),
+        ),
+        _row(
+            _item("Finish Error", fixed(s.finish_error, 6), f" (mm){pc_tag}"),
+            _item("enc_finsh_err", str(max(1, math.floor(s.finish_error * c)))),
+        ),
+        _row(
+            _item("Backlash", fixed(s.backlash, 6), " (mm)[B]"),
+            _item("enc_backlash", str(math.floor(s.backlash * c))),
+        ),
+        _row(_item("Kp", str(s.kp), " [KP]"), _item("Ki", str(s.ki), " [KI]")),
+        _row(_item("Kv", str(s.kv), " [KV]"), _item("Kd", str(s.kd), " [KD]")),
+        _row(
+            _item("Axis Enable", "3" if axis.enabled else "0", " [MC]"),
+            _item("Motor Enable", "1" if axis.motor_on(t) else "0"),
+        ),
+        _row(
+            _item("CMD_stat", "MOVING" if axis.busy(t) else "NO_MOVE"), _item("Move_stat", axis.move_stat(t))
+        ),
+        _row(
+            _item("Current pos", fixed(axis.user_mm_of(position), 4), " (mm)"),
+            _item("enc position", fixed(position, 0)),
+        ),
+        _row(
+            _item("Target pos", fixed(axis.user_mm_of(axis.target), 4), " (mm)"),
+            _item("enc target", str(axis.target)),
+        ),
+        _row(_item("enc pos error", fixed(axis.target - position, 0)), _item("EEsum", "0")),
+        _row(_item("Lst Stle Time", settle, " (ms)"), _item("Av Settle Tim", settle, " (ms)")),
+        _row(
+            _item("Home position", fixed(axis.user_of_machine_mm(axis.auto.home), 2), " (mm)"),
+            _item("Motor Signal", str(dac), " (DAC)"),
+        ),
+        _row(_item("mm/sec/DAC_ct", fixed(s.dac, 5), " [D]"), _item("Enc Cnts/mm", fixed(c, 2), " [C]")),
+        _row(
+            _item("Wait Time", str(s.wait_ms), " [WT]"),
+            _item("Button Enable", str(ctl.card.button_enable), " [BE]"),
+        ),
+    ]
+
+
+def build_lines(ctl: MS2000) -> list[str]:
+    """BU X (MS-102): build name, axes, command letters, boot loader, hardware, one line per module."""
+    cfg = ctl.cfg
+    lines = [
+        cfg.build_name,
+        "Motor Axes: " + " ".join(a.letter for a in ctl.axes),
+        f"CMDs: {cfg.cmd_letters}",
+        cfg.bootldr,
+        cfg.hdwr,
+    ]
+    for name in cfg.modules:
+        module = ctl.modules.get(name)
+        lines.append(module.bu_line() if module is not None else name)
+    return lines

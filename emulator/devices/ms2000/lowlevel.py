@@ -1,0 +1,68 @@
+"""Low-level binary mode (§8): frames addressed by axis id, numbers in tenths of a micron of user
+position, 24-bit two's complement least significant byte first (MS-120, MS-121)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from emulator.motion import round_half_away
+from protocols.ms2000 import LLCommand, LLFrame, LLFrameDecoder, decode_int24, encode_int24
+
+if TYPE_CHECKING:
+    from emulator.devices.ms2000.axis import Axis
+    from emulator.devices.ms2000.controller import MS2000
+
+TENTHS_PER_MM = 10000
+#: default step of `+`/`-` in tenths of a micron (10 µm) [choice] (MS-121)
+DEFAULT_INCREMENT = 100
+
+
+class LowLevel:
+    def __init__(self, ctl: MS2000) -> None:
+        self.ctl = ctl
+        self.decoder = LLFrameDecoder()
+        self.increments: dict[str, int] = {}
+
+    def reset(self) -> None:
+        self.decoder.axis_ids = {a.s.ll_id for a in self.ctl.axes}
+        self.decoder.reset()
+        self.increments = {a.hw_letter: DEFAULT_INCREMENT for a in self.ctl.axes}
+
+    def feed(self, byte: int, t: float) -> None:
+        frame = self.decoder.feed(byte)
+        if frame is not None and frame.known:
+            self.execute(frame, t)
+
+    def _tenths(self, axis: Axis, t: float) -> int:
+        return round_half_away(axis.user_mm(t) * TENTHS_PER_MM)
+
+    def execute(self, frame: LLFrame, t: float) -> None:
+        axis = next((a for a in self.ctl.axes if a.s.ll_id == frame.axis_id), None)
+        if axis is None:
+            return
+        ctl = self.ctl
+        command = LLCommand(frame.command)
+        status = axis.status_byte(t, ctl.knobs.status_bit5_up_is_one, low_level=True)
+        if command is LLCommand.BUSY:
+            ctl.send_raw(b"B" if axis.busy(t) else b"b", t)
+        elif command is LLCommand.POSITION:
+            ctl.send_raw(encode_int24(self._tenths(axis, t)), t)
+        elif command is LLCommand.POSITION_STATUS:
+            ctl.send_raw(encode_int24(self._tenths(axis, t)) + bytes([status]), t)
+        elif command is LLCommand.STATUS:
+            ctl.send_raw(bytes([status]), t)
+        elif command is LLCommand.READ_INCREMENT:
+            ctl.send_raw(encode_int24(self.increments[axis.hw_letter]), t)
+        elif command is LLCommand.START_MOTOR:
+            ctl.enable_motor(axis, t)
+        elif command in (LLCommand.JOYSTICK_ON, LLCommand.JOYSTICK_OFF):
+            ctl.set_manual_enabled(axis, command is LLCommand.JOYSTICK_ON, t)
+        elif command is LLCommand.WRITE_INCREMENT:
+            self.increments[axis.hw_letter] = decode_int24(frame.data)
+        elif command is LLCommand.MOVE_TO:
+            goal = axis.counts_of(decode_int24(frame.data) / TENTHS_PER_MM)
+            ctl.start_moves([(axis, goal)], t)
+        elif command in (LLCommand.STEP_UP, LLCommand.STEP_DOWN):
+            sign = 1 if command is LLCommand.STEP_UP else -1
+            step_mm = sign * self.increments[axis.hw_letter] / TENTHS_PER_MM
+            ctl.start_moves([(axis, ctl.relative_goal(axis, step_mm, t))], t)

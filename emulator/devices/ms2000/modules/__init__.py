@@ -1,0 +1,140 @@
+"""Firmware modules as plug-ins: one file per module in this package.
+
+A module subclasses `Module`, decorates it with `@register`, and declares what it adds to the
+controller:
+
+- `name`: the module's name in a profile's `modules` list and on its `BU X` line;
+- `handlers()`: command key (protocols.ms2000 table) -> handler; a command whose owning modules are
+  all absent from the profile replies `:N-1` (MS-118); `query_shapes` adds reply shapes. Handlers
+  are installed in the profile's module order after the base ones, so a module may also take over a
+  base command (delegating the rest to `ctl.commands`);
+- `profile_fields` / `knob_fields`: schema fields merged into the profile (top level / `knobs`);
+- `in0_modes`, `out0_modes`: TTL IN0/OUT0 mode numbers it implements (`TTL X=`, `TTL Y=`);
+  `provides_in0_interrupt`: it is the IN0 interrupt service (INO_INT) that non-zero modes need;
+- `button_priority`, `button()`, `button_functions()`: front-panel buttons it claims (MS-85) and
+  `BE F` function numbers it implements (MS-86);
+- `observable` / `observe()`, `inputs` / `control_input()`: control-channel vocabulary;
+- `lcd_segment()`, `bu_line()`, `save()`/`restore()` (SS Z), `reset()`, `halt()`, and the event
+  hooks `in0_trigger()`, `in0_mode_changed()`, `out0_mode_changed()`, `out0_level()`, `out0_pwm()`,
+  `ttl_trailing_value()`, `move_complete()`, `report_mask()`.
+
+The controller passes itself; modules use its public methods (moves, scheduling, unsolicited
+output, error log) and never touch the line.
+"""
+
+from __future__ import annotations
+
+import importlib
+import pkgutil
+from collections.abc import Callable, Mapping
+from typing import TYPE_CHECKING, Any, ClassVar
+
+from emulator.device import ControlError
+from emulator.devices.ms2000.calls import Call, Pending, Reply
+from emulator.schema import Field
+from protocols.ms2000 import Fmt, Shape
+
+if TYPE_CHECKING:
+    from emulator.devices.ms2000.controller import MS2000
+
+Handler = Callable[[Call], "Reply | Pending"]
+
+#: modules present as plain feature flags, without a plug-in (low-level mode is base code, §8)
+FEATURE_FLAGS = ("LL COMMANDS",)
+
+
+class Module:
+    name: ClassVar[str]
+    query_shapes: ClassVar[Mapping[str, tuple[Shape, Fmt]]] = {}
+    profile_fields: ClassVar[tuple[Field, ...]] = ()
+    knob_fields: ClassVar[tuple[Field, ...]] = ()
+    in0_modes: ClassVar[frozenset[int]] = frozenset()
+    provides_in0_interrupt: ClassVar[bool] = False
+    out0_modes: ClassVar[frozenset[int]] = frozenset()
+    #: lower claims buttons first (MS-85: SEQUENCER, CRISP, SCAN, ARRAY, AUTOFOCUS, PLANAR, RING BUFFER)
+    button_priority: ClassVar[int] = 100
+    observable: ClassVar[str | None] = None
+    inputs: ClassVar[frozenset[str]] = frozenset()
+
+    def __init__(self, ctl: MS2000) -> None:
+        self.ctl = ctl
+
+    def handlers(self) -> dict[str, Handler]:
+        return {}
+
+    def button_functions(self) -> dict[int, Callable[[float], None]]:
+        return {}
+
+    def bu_line(self) -> str:
+        return self.name
+
+    def lcd_segment(self, now: float) -> str | None:
+        return None
+
+    def observe(self, now: float) -> Any:
+        return None
+
+    def control_input(self, name: str, params: dict[str, Any], now: float) -> Any:
+        raise ControlError(f"{self.name}: no input {name!r}")
+
+    def save(self) -> dict[str, Any]:
+        return {}
+
+    def restore(self, data: dict[str, Any] | None) -> None:
+        """Settings from `SS Z` (None: factory)."""
+
+    def reset(self, now: float) -> None:
+        """Software reset or power-up: state machines back to idle."""
+
+    def halt(self, now: float) -> None:
+        """HALT: stop whatever the module is running (MS-76)."""
+
+    def in0_trigger(self, mode: int, now: float) -> None:
+        """An IN0 rising edge (or a bare `RM`, MS-RB-5) in one of `in0_modes`."""
+
+    def in0_mode_changed(self, mode: int, now: float) -> None:
+        """`TTL X` was set (to any mode)."""
+
+    def out0_mode_changed(self, mode: int, now: float) -> None:
+        """`TTL Y` was set (to any mode)."""
+
+    def out0_level(self) -> int | None:
+        """Level of OUT0 in one of `out0_modes` (None: not driven by this module)."""
+        return None
+
+    def out0_pwm(self) -> float | None:
+        return None
+
+    def ttl_trailing_value(self, out_mode: int, value: float, now: float) -> None:
+        """A bare number after `TTL Y=<out_mode>` (MS-24, MS-LED-3)."""
+
+    def button(self, name: str, press: str, now: float) -> bool:
+        """A released front-panel button; True when the module claims it."""
+        return False
+
+    def move_complete(self, axes: list[str], now: float) -> None:
+        """A commanded move completed."""
+
+    def report_mask(self) -> int | None:
+        """Axes (bit 0 = first motor axis) that IN0 mode 5 reports, if the module selects them."""
+        return None
+
+
+MODULES: dict[str, type[Module]] = {}
+
+
+def register(cls: type[Module]) -> type[Module]:
+    MODULES[cls.name] = cls
+    return cls
+
+
+def known_names() -> tuple[str, ...]:
+    return (*FEATURE_FLAGS, *MODULES)
+
+
+def _load() -> None:
+    for info in pkgutil.iter_modules(__path__):
+        importlib.import_module(f"{__name__}.{info.name}")
+
+
+_load()

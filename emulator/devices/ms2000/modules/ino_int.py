@@ -1,0 +1,160 @@
+"""INO_INT: the TTL IN0 interrupt service and its base modes (MS-90, MS-94).
+
+Every IN0 mode other than 0 needs this module; it implements modes 2 (repeat the last relative
+move), 4 (Z-stack step with `ZS`), 5 (asynchronous position reports every `RT X` ms) and 10 (toggle
+OUT0). Other modules implement further modes (RING BUFFER mode 1, ...).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from emulator.devices.ms2000.calls import Call, Param, Reply, one_of, run_settings, within
+from emulator.devices.ms2000.modules import Handler, Module, register
+from emulator.motion import round_half_away
+from protocols.ms2000 import Fmt
+
+if TYPE_CHECKING:
+    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.scheduler import Timer
+
+REPEAT_RELATIVE, Z_STACK, REPORT, TOGGLE_OUT = 2, 4, 5, 10
+FACTORY_ZS = {"step": 0.0, "steps": 1, "mode": 0, "timeout_ms": 500}
+
+
+@register
+class InoInt(Module):
+    name = "INO_INT"
+    provides_in0_interrupt = True
+    in0_modes = frozenset({REPEAT_RELATIVE, Z_STACK, REPORT, TOGGLE_OUT})
+    observable = "z_stack"
+
+    def __init__(self, ctl: MS2000) -> None:
+        super().__init__(ctl)
+        self.zs = dict(FACTORY_ZS)
+        self.start_units = 0.0
+        self.index = 0
+        self.direction = 1
+        self.last_edge: float | None = None
+        self._report: Timer | None = None
+        self._report_start = 0.0
+
+    def handlers(self) -> dict[str, Handler]:
+        return {"ZS": self.zstack}
+
+    def save(self) -> dict[str, Any]:
+        return dict(self.zs)
+
+    def restore(self, data: dict[str, Any] | None) -> None:
+        self.zs = dict(FACTORY_ZS)
+        for key, value in (data or {}).items():
+            if key in self.zs and isinstance(value, int | float):
+                self.zs[key] = value
+
+    def reset(self, now: float) -> None:
+        self._stop_reports()
+        self._restart_stack(now)
+
+    def observe(self, now: float) -> Any:
+        return {
+            **self.zs,
+            "index": self.index,
+            "start": self.start_units,
+            "reporting": self._report is not None,
+        }
+
+    def zstack(self, call: Call) -> Reply:
+        """ZS X=step (units) Y=steps Z=mode (0 sawtooth, 1 triangle) F=timeout ms (MS-94)."""
+        zs = self.zs
+
+        def setter(key: str, cast: type) -> Any:
+            return lambda v: zs.__setitem__(key, cast(v))
+
+        params = {
+            "X": Param(lambda: zs["step"], setter("step", float), fmt=Fmt.F6),
+            "Y": Param(lambda: zs["steps"], setter("steps", int), within(1, 65535, integer=True)),
+            "Z": Param(lambda: zs["mode"], setter("mode", int), one_of(0, 1)),
+            "F": Param(lambda: zs["timeout_ms"], setter("timeout_ms", int), within(0, 65535, integer=True)),
+        }
+        return run_settings(call, params, "XYZF", self.ctl.render(call.key), self.ctl.ack())
+
+    def in0_mode_changed(self, mode: int, now: float) -> None:
+        if mode != REPORT:
+            self._stop_reports()
+        if mode == Z_STACK:
+            self._restart_stack(now)
+
+    def in0_trigger(self, mode: int, now: float) -> None:
+        if mode == REPEAT_RELATIVE:
+            self._repeat_relative(now)
+        elif mode == Z_STACK:
+            self._stack_step(now)
+        elif mode == REPORT:
+            if self._report is None:
+                self._report_start = now
+                self._report = self.ctl.scheduler.at(now + self._period(), self._send_report)
+            else:
+                self._stop_reports()
+        elif mode == TOGGLE_OUT:
+            self.ctl.ttl.toggle(now)
+
+    # ---- mode 2 -------------------------------------------------------------------------------
+
+    def _repeat_relative(self, now: float) -> None:
+        ctl = self.ctl
+        moves = [(ctl.axis_named(letter), units) for letter, units in ctl.last_relative]
+        focus = ctl.focus_axis()
+        if not moves and focus is not None and self.zs["step"]:
+            moves = [(focus, self.zs["step"])]
+        goals = [
+            (axis, ctl.relative_goal(axis, (units or 0.0) / axis.s.unit_multiplier, now))
+            for axis, units in moves
+            if axis is not None
+        ]
+        ctl.start_moves(goals, now)
+
+    # ---- mode 4 -------------------------------------------------------------------------------
+
+    def _restart_stack(self, now: float) -> None:
+        focus = self.ctl.focus_axis()
+        self.start_units = focus.units(now) if focus is not None else 0.0
+        self.index = 0
+        self.direction = 1
+        self.last_edge = None
+
+    def _stack_step(self, now: float) -> None:
+        focus = self.ctl.focus_axis()
+        if focus is None:
+            return
+        timed_out = self.last_edge is not None and (now - self.last_edge) * 1000 > self.zs["timeout_ms"]
+        self.last_edge = now
+        steps = int(self.zs["steps"])
+        if timed_out:
+            self.index = 0
+            self.direction = 1
+        elif self.zs["mode"] == 0:
+            self.index = 0 if self.index >= steps else self.index + 1
+        else:
+            if self.direction > 0 and self.index >= steps:
+                self.direction = -1
+            elif self.direction < 0 and self.index <= 0:
+                self.direction = 1
+            self.index += self.direction
+        goal = self.start_units + self.index * self.zs["step"]
+        self.ctl.start_moves([(focus, focus.counts_of_units(goal))], now)
+
+    # ---- mode 5 -------------------------------------------------------------------------------
+
+    def _period(self) -> float:
+        return self.ctl.card.rt_report_ms / 1000
+
+    def _send_report(self, now: float) -> None:
+        ms = round_half_away((now - self._report_start) * 1000)
+        positions = " ".join(self.ctl.where(a.units(now)) for a in self.ctl.report_axes())
+        self.ctl.unsolicited(f"{ms} {positions}", now)
+        self._report = self.ctl.scheduler.at(now + self._period(), self._send_report)
+
+    def _stop_reports(self) -> None:
+        if self._report is not None:
+            self._report.cancel()
+            self._report = None

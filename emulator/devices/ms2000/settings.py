@@ -1,0 +1,117 @@
+"""The controller's settings, in the three groups that differ in how they persist (MS-111).
+
+- `AxisSettings`, `CardSettings`: saved by `SS Z`, restored at reset and power-up (factory values
+  from the profile when nothing is saved);
+- `AxisAuto`, `CardAuto`: remembered automatically as soon as they change (soft limits, home, AA,
+  CCA X, button assignments);
+- everything else (positions aside, which are saved at power-off) is volatile.
+
+Positions of limits and home are machine millimetres (fixed hardware locations, MS-49).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, TypeVar
+
+T = TypeVar("T")
+
+
+@dataclass
+class AxisSettings:
+    speed: float  # S, mm/s (MS-54)
+    accel_ms: int  # AC (MS-55)
+    wait_ms: int  # WT (MS-56)
+    backlash: float  # B, mm (MS-57)
+    overshoot_counts: int  # OS, whole encoder counts (MS-58)
+    drift_error: float  # E, mm (MS-59)
+    finish_error: float  # PC, mm (MS-60)
+    maintain: int  # MA (MS-61)
+    runaway: float  # RU, mm (MS-62)
+    kp: int
+    ki: int
+    kd: int
+    kv: int
+    ka: int
+    dac: float  # D, mm/s per DAC count (MS-71, MS-97)
+    counts_per_mm: float  # C (MS-45)
+    polarity: int  # EP (MS-97)
+    unit_multiplier: float  # UM (MS-44)
+    input_device: int  # J L=n (MS-73)
+    manual_enabled: bool  # J L+/L- (MS-73)
+    ll_id: int  # LL (MS-114)
+    rename: int | None  # Z2B L=code, applied at the next reset (MS-115)
+
+
+@dataclass
+class AxisAuto:
+    soft_lower: float  # SL, machine mm (MS-65)
+    soft_upper: float  # SU, machine mm
+    home: float  # HM, machine mm (MS-68)
+    aa: int  # AA (MS-97)
+
+
+@dataclass
+class CardSettings:
+    js_fast: float = 100.0  # JS X (MS-74)
+    js_slow: float = 5.0  # JS Y
+    js_wheel: float = 100.0  # JS Z
+    knob_slow: float = 1.0  # JS F (MS-KNOB-1)
+    knob_mult: int = 4  # JS T
+    ttl_in: int = 0  # TTL X (MS-89, MS-90)
+    ttl_out: int = 0  # TTL Y (MS-91)
+    ttl_aux: int = 0  # TTL Z
+    ttl_polarity: int = 1  # TTL F
+    rt_report_ms: float = 200.0  # RT X (MS-93)
+    rt_pulse_ms: float = 10.0  # RT Y
+    rt_delay_ms: float = 100.0  # RT Z
+    rt_averages: float = 1.0  # RT F
+    vb_flags: int = 0  # VB X (MS-96)
+    vb_decimals: int = 0  # VB Z (MS-47, MS-109)
+    stop_bits: int = 1  # SB X (MS-3)
+    button_enable: int = 31  # BE Z (MS-86)
+    button_home_normal: int = 2  # BE R
+    button_joystick_extra: int = 0  # BE T
+    button_zero_normal: int = 1  # BE M
+    user_string: str = ""  # BU Y (MS-103)
+    inhibit_position_save: int = 0  # SP X (MS-113)
+    cca_y: int = 0  # CCA Y (MS-97)
+    cca_z: int = 0  # CCA Z
+
+
+#: BCA letters and the press they assign (MS-86, our numbering; see docs/ms2000.md)
+BCA_LETTERS = "XYZFTRM"
+
+
+@dataclass
+class CardAuto:
+    cca_x: int = 0  # CCA X, saved immediately (MS-97)
+    bca: dict[str, int] = field(default_factory=lambda: dict.fromkeys(BCA_LETTERS, 0))
+
+
+def to_plain(value: Any) -> dict[str, Any]:
+    return dataclasses.asdict(value)
+
+
+def from_plain(factory: T, data: Any) -> T:
+    """`factory` updated with the known keys of `data` (unknown or mistyped keys are ignored, so a
+    store written by another version still loads)."""
+    if not isinstance(data, dict):
+        return dataclasses.replace(factory)  # type: ignore[type-var]
+    current = to_plain(factory)
+    updates = {}
+    for key, value in data.items():
+        if key in current and _same_kind(current[key], value):
+            updates[key] = value
+    return dataclasses.replace(factory, **updates)  # type: ignore[type-var]
+
+
+def _same_kind(old: Any, new: Any) -> bool:
+    if old is None or new is None:
+        return True
+    if isinstance(old, bool) or isinstance(new, bool):
+        return isinstance(old, bool) and isinstance(new, bool)
+    if isinstance(old, int | float):
+        return isinstance(new, int | float)
+    return isinstance(new, type(old))

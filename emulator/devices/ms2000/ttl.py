@@ -1,0 +1,102 @@
+"""The TTL IN0/IN1 inputs and the OUT0 output (§6.7).
+
+OUT0's level comes from its mode (`TTL Y`): 0 low, 1 high, 2 (and 8) pulses of `RT Y` ms after
+each commanded move, module modes from the module (LED DIMMER's PWM in mode 9); IN0 mode 10 toggles
+it whatever the mode; `TTL F=-1` inverts it (MS-91). Every edge of the effective level is pushed as
+an `ttl_out0` event.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.scheduler import Timer
+
+#: OUT0 modes of the base controller (MS-91); 8 is PREPULSE's timed pulse, emulated as mode 2
+BASE_OUT_MODES = frozenset({0, 1, 2})
+PULSE_MODES = frozenset({2, 8})
+
+
+class Ttl:
+    def __init__(self, ctl: MS2000) -> None:
+        self.ctl = ctl
+        self.in0 = 0
+        self.in1 = 0
+        self.raw = 0
+        self.level = 0
+        self._pulse: Timer | None = None
+        self._in0_fall: Timer | None = None
+
+    def reset(self, t: float) -> None:
+        if self._pulse is not None:
+            self._pulse.cancel()
+            self._pulse = None
+        self.apply_mode(t)
+
+    def effective(self) -> int:
+        mode = self.ctl.card.ttl_out
+        module = self.ctl.out0_module(mode)
+        level = self.raw
+        if module is not None:
+            driven = module.out0_level()
+            level = self.raw if driven is None else driven
+        return level ^ (1 if self.ctl.card.ttl_polarity == -1 else 0)
+
+    def refresh(self, t: float) -> None:
+        level = self.effective()
+        if level != self.level:
+            self.level = level
+            self.ctl.push_event({"ev": "ttl_out0", "level": level, "t": t})
+
+    def set_raw(self, level: int, t: float) -> None:
+        self.raw = level
+        self.refresh(t)
+
+    def apply_mode(self, t: float) -> None:
+        """`TTL Y` or `TTL F` changed: mode 1 drives high, others start low."""
+        self.set_raw(1 if self.ctl.card.ttl_out == 1 else 0, t)
+
+    def pulse(self, t: float) -> None:
+        """End-of-move pulse in OUT0 mode 2 (MS-91)."""
+        if self.ctl.card.ttl_out not in PULSE_MODES:
+            return
+        if self._pulse is not None:
+            self._pulse.cancel()
+        self.set_raw(1, t)
+        self._pulse = self.ctl.scheduler.at(t + self.ctl.card.rt_pulse_ms / 1000, self._pulse_end)
+
+    def _pulse_end(self, t: float) -> None:
+        self._pulse = None
+        self.set_raw(0, t)
+
+    def toggle(self, t: float) -> None:
+        """IN0 mode 10 (MS-90)."""
+        self.set_raw(1 - self.raw, t)
+
+    def pwm(self) -> float:
+        module = self.ctl.out0_module(self.ctl.card.ttl_out)
+        duty = module.out0_pwm() if module is not None else None
+        return 0.0 if duty is None else duty
+
+    # ---- inputs --------------------------------------------------------------------------------
+
+    def set_in0(self, level: int, t: float) -> None:
+        rising = level and not self.in0
+        self.in0 = level
+        if rising:
+            self.ctl.in0_edge(t)
+
+    def pulse_in0(self, ms: float, t: float) -> None:
+        if self._in0_fall is not None:
+            self._in0_fall.cancel()
+        self.set_in0(1, t)
+        self._in0_fall = self.ctl.scheduler.at(t + ms / 1000, lambda due: self.set_in0(0, due))
+
+    def set_in1(self, level: int, t: float) -> None:
+        if level == self.in1:
+            return
+        self.in1 = level
+        if self.ctl.card.vb_flags & 4:
+            self.ctl.unsolicited("H" if level else "L", t)

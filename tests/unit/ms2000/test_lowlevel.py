@@ -1,0 +1,93 @@
+"""Low-level binary mode (§8): TV-122…TV-128."""
+
+from __future__ import annotations
+
+import pytest
+
+from tests.unit.ms2000.conftest import Harness
+
+
+@pytest.fixture
+def low(ms: Harness) -> Harness:
+    """TV-122 set-up: X at -12345 units, then low-level mode."""
+    assert ms.cmd("H X=-12345") == b":A\r\n"
+    assert ms.send(b"\xff\x42") == b""
+    return ms
+
+
+def test_tv122_position_read_ms119_ms120_ms121(low: Harness) -> None:
+    assert low.send(b"\x18\x61\x03\x3a") == b"\xc7\xcf\xff"
+
+
+def test_tv123_busy_status_position_and_status_ms121_ms122(low: Harness) -> None:
+    assert low.send(b"\x18\x3f\x00\x3a") == b"b"
+    assert low.send(b"\x18\x7e\x01\x3a") == b"\x0a"
+    assert low.send(b"\x18\x6c\x03\x3a") == b"\xc7\xcf\xff\x0a"
+
+
+def test_tv124_to_tv126_moves_increment_and_return_ms121_ms120_ms123_ms124_ms119(low: Harness) -> None:
+    assert low.send(b"\x18\x54\x03\xa0\x86\x01\x3a") == b""
+    assert low.send(b"\x18\x3f\x00\x3a") == b"B"
+    low.wait(3.0)
+    assert low.send(b"\x18\x61\x03\x3a") == b"\xa0\x86\x01"
+    # TV-125
+    assert low.send(b"\x18\x44\x03\xe8\x03\x00\x3a") == b""
+    assert low.send(b"\x18\x64\x03\x3a") == b"\xe8\x03\x00"
+    assert low.send(b"\x18\x2b\x00\x3a") == b""
+    low.wait(1.0)
+    assert low.send(b"\x18\x61\x03\x3a") == b"\x88\x8a\x01"
+    # TV-126
+    assert low.send(b"\x18\x4b\x3a") == b""
+    assert low.send(b"\x20\x61\x03\x3a") == b""
+    assert low.send(b"V\r") == b""
+    assert low.send(b"\xff\x41") == b""
+    assert low.cmd("RS X") == b":A 2\r\n"
+
+
+def test_low_level_byte_by_byte_ms120(low: Harness) -> None:
+    assert low.send(b"\x18\x6c\x03\x3a\x19\x61\x03\x3a", chunk=1) == b"\xc7\xcf\xff\x0a\x00\x00\x00"
+
+
+def test_low_level_step_down_joystick_on_and_motor_start_ms121(low: Harness) -> None:
+    low.send(b"\x19\x2d\x00\x3a")
+    low.wait(1.0)
+    low.send(b"\xff\x41")
+    assert low.cmd("W Y") == b":A -100\r\n"
+    low.cmd("MC Y- J Y-")
+    low.send(b"\xff\x42\x19\x47\x3a\x19\x4a\x00\x3a\xff\x41")
+    assert low.cmd("RS Y") == b":A 10\r\n"
+
+
+def test_low_level_status_bit1_always_set_ms122(low: Harness) -> None:
+    low.send(b"\xff\x41")
+    low.cmd("MC X-")
+    assert low.send(b"\xff\x42\x18\x7e\x01\x3a") == b"\x0a"
+
+
+def test_tv127_where_resolution_sequences_ms119(ms: Harness) -> None:
+    ms.cmd("H X=-12345")
+    assert ms.send(b"\xff\x48") == b""
+    assert ms.cmd("W X") == b":A -12345.0\r\n"
+    assert ms.send(b"\xff\x54") == b""
+    assert ms.cmd("W X") == b":A -12345\r\n"
+
+
+def test_tv128_without_ll_module_ff42_discarded_ms119(make: type[Harness]) -> None:
+    h = make(overrides={"modules": ["RING BUFFER", "INO_INT", "LED DIMMER"]})
+    assert h.send(b"\xff\x42V\r") == b":A Version: USB-9.2k \r\n"
+
+
+def test_control_sequences_anywhere_and_unknown_ones_ms119(ms: Harness) -> None:
+    assert ms.send(b"W \xff\x54X\r") == b":A 0\r\n"
+    assert ms.send(b"W\xff\x62 X\r") == b":A 0\r\n"
+    assert ms.send(b"W X\xff\xff\r") == b":A 0\r\n"
+
+
+def test_entering_low_level_drops_partial_line_ms119(ms: Harness) -> None:
+    assert ms.send(b"W X\xff\x42\xff\x41\r") == b":N-1\r\n"
+
+
+def test_ff_reset_without_reply_ms119_ms112(ms: Harness) -> None:
+    ms.cmd("H X=500")
+    assert ms.send(b"\xff\x52") == b""
+    assert ms.cmd("W X") == b":A 0\r\n"

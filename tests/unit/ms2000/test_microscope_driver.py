@@ -1,0 +1,86 @@
+"""python-microscope 0.7.0's ASIMS2000 driver against the model, through a fake serial port on the
+manual clock (TV-218): INFO probing with an absent axis silent, SPEED read-back by offset, LED by
+fixed offsets, RDSTAT polling, SPIN to a limit and HERE for homing."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import pytest
+
+from tests.unit.ms2000.conftest import Harness
+
+asi = pytest.importorskip("microscope.controllers.asi")
+
+
+class FakeSerial:
+    """The part of pyserial the driver uses; reads block by moving the model's clock."""
+
+    harness: Harness
+
+    def __init__(self, **settings: Any) -> None:
+        self.timeout = settings.get("timeout", 1.0)
+        self._buffer = bytearray()
+
+    def write(self, data: bytes) -> int:
+        self._buffer += self.harness.send(data)
+        return len(data)
+
+    def read_until(self, expected: bytes = b"\n", size: int | None = None) -> bytes:
+        end = self._buffer.find(expected)
+        if end < 0:
+            self.harness.wait(self.timeout)
+            self._buffer += self.harness.output()
+            end = self._buffer.find(expected)
+        cut = len(self._buffer) if end < 0 else end + len(expected)
+        data = bytes(self._buffer[:cut])
+        del self._buffer[:cut]
+        return data
+
+    def readline(self) -> bytes:
+        return self.read_until(b"\n")
+
+    def flushInput(self) -> None:
+        self._buffer.clear()
+
+
+@pytest.fixture
+def driver(monkeypatch: pytest.MonkeyPatch) -> tuple[Any, Harness]:
+    def make(profile: str = "ms2000") -> tuple[Any, Harness]:
+        harness = Harness(profile)
+        FakeSerial.harness = harness
+        monkeypatch.setattr(asi.serial, "Serial", FakeSerial)
+        monkeypatch.setattr(asi.time, "sleep", harness.wait)
+        return asi.ASIMS2000("fake", lights=["led1"]), harness
+
+    return make  # type: ignore[return-value]
+
+
+def test_tv218_initialise_read_move_and_wait_ms106_ms54_ms78_ms81_ms77_ms_led_2(driver: Any) -> None:
+    controller, harness = driver()
+    stage = controller.devices["stage"]
+    assert sorted(stage.axes) == ["X", "Y", "Z"]
+    assert controller._conn.axis_info["X"]["Kp"] == {"value": "100", "command": "KP", "units": None}
+    assert harness.cmd("S X?") == b":A X=5.145600\r\n"  # 0.67 × the 7.68 read back
+    assert stage.axes["X"].position == 0.0
+    assert stage.axes["Y"].position == 0.0
+    assert stage.axes["Z"].position == 0.0
+    stage.axes["X"].move_by(100)
+    assert stage.axes["X"].position == 100.0
+    led = controller.devices["led1"]
+    led.power = 0.5
+    assert led.power == pytest.approx(0.5)
+    assert harness.cmd("LED X?") == b"X=50 :A\r\n"
+
+
+def test_absent_axis_stays_silent_for_the_driver_ms107(driver: Any) -> None:
+    controller, _ = driver("ms2000-xy")
+    assert sorted(controller.devices["stage"].axes) == ["X", "Y"]
+
+
+def test_driver_homing_spins_to_limits_ms71_ms69(driver: Any) -> None:
+    controller, _ = driver()
+    axis = controller.devices["stage"].axes["Y"]
+    limits = axis.find_limits()
+    assert limits.lower == 0.0
+    assert limits.upper == pytest.approx(800000, abs=1)
