@@ -86,7 +86,7 @@ def test_ctl_params_must_be_key_value(tmp_path: Path) -> None:
 
 def test_describe_marks_only_values_that_differ_from_their_default(tmp_path: Path) -> None:
     changed = tmp_path / "changed.yaml"
-    changed.write_text(f"spec: 1\nextends: {PROBE}\ndescription: probe with a slower line\nline: {{baud: 4800}}\n")
+    changed.write_text(f"spec: 1\nextends: {PROBE}\ndescription: a slower probe\nline: {{baud: 4800}}\n")
     code, out, _ = run("describe", str(changed))
     assert code == 0
     marked = [line.split()[0] for line in out.splitlines()[1:] if line.endswith("  *")]
