@@ -145,7 +145,8 @@ def check_rig(rig: Rig) -> str:
 
 
 def rig_from_profiles(entries: list[str]) -> Rig:
-    """`--profile NAME[:LINK]` options as a rig: device names are `<profile>-<n>`."""
+    """`--profile NAME[:LINK]` options as a rig: the device is named after its profile, repeats
+    of a profile get `-2`, `-3`... (`--profile mp285 --profile mp285` serves mp285 and mp285-2)."""
     devices = []
     counts: dict[str, int] = {}
     for entry in entries:
@@ -154,7 +155,8 @@ def rig_from_profiles(entries: list[str]) -> Rig:
         index = counts.get(profile.name, 0)
         counts[profile.name] = index + 1
         port = PortSpec("main", "pty", FsPath(link).expanduser().absolute() if link else None, 0o600, None)
-        devices.append(DeviceSpec(f"{profile.name}-{index}", profile, (port,)))
+        name = profile.name if index == 0 else f"{profile.name}-{index + 1}"
+        devices.append(DeviceSpec(name, profile, (port,)))
     rig = Rig("--profile", tuple(devices))
     problem = check_rig(rig)
     if problem:
