@@ -319,8 +319,9 @@ class ControlClient:
     def get(self, device: str, name: str) -> Any:
         return self.request({"device": device, "get": name})
 
-    def input(self, device: str, name: str, **params: Any) -> Any:
-        return self.request({"device": device, "in": name, **params})
+    def input(self, device: str, input_name: str, /, **params: Any) -> Any:
+        """Set a device input; positional-only so an input may itself take a `name` parameter."""
+        return self.request({"device": device, "in": input_name, **params})
 
     def snapshot(self, device: str, path: str | None = None) -> Any:
         return self.request({"device": device, "op": "snapshot", "path": path})

@@ -59,8 +59,8 @@ class Target:
             pytest.skip("needs the emulator's control channel")
         return self.control
 
-    def input(self, name: str, **params: Any) -> Any:
-        return self.ctl().input(self.device, name, **params)
+    def input(self, input_name: str, /, **params: Any) -> Any:
+        return self.ctl().input(self.device, input_name, **params)
 
     def get(self, name: str) -> Any:
         return self.ctl().get(self.device, name)

@@ -116,6 +116,7 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
         self._line = bytearray()
         self._overflow = False
         self._ff = False
+        self._junk = False
         self._queue: deque[bytes | None] = deque()
         self._pending: tuple[Pending, bool, Timer] | None = None
         self._silenced = False
@@ -202,12 +203,23 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
             return
         if self._garbles():
             data = garble(data)
+            self._junk = True
+        elif self._junk:
+            self._drop_junk()
         for byte in data:
             if self._silenced:
                 break
             self._byte(byte, now)
         self.scheduler.run_due(now)
         self._persist_idle_positions(now)
+
+    def _drop_junk(self) -> None:
+        """MS-4 [choice]: what a mismatched host left half-assembled is dropped once its settings
+        match again, so its first line at the right settings is read cleanly (TV-120)."""
+        self._junk = False
+        self._line.clear()
+        self._overflow = False
+        self.low.decoder.reset()
 
     def _byte(self, byte: int, t: float) -> None:
         if self._ff:

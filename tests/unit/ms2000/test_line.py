@@ -116,8 +116,21 @@ def test_tv120_data_bits_and_parity_ms1_ms4(ms: Harness) -> None:
     ms.input("host_line", baud=9600, data_bits=7, parity="even")
     assert ms.cmd("V") == b""
     ms.input("host_line", baud=9600, data_bits=8, parity="none")
-    assert ms.send(b"\r") == b":N-1\r\n"  # the junk of the garbled line ends here
+    assert ms.cmd("V") == VERSION  # the junk of the garbled line does not prefix it
+
+
+def test_junk_dropped_when_settings_match_again_ms4(ms: Harness) -> None:
+    """Half a garbled line, whether ASCII or a low-level frame, is dropped once the host's settings
+    match again (TV-120)."""
+    ms.dev.line_changed(LineSettings(baud=19200), ms.t)
+    ms.send(b"W X")
+    ms.dev.line_changed(LineSettings(baud=9600), ms.t)
     assert ms.cmd("V") == VERSION
+    ms.send(b"\xffB")
+    ms.dev.line_changed(LineSettings(baud=19200), ms.t)
+    ms.send(b"\x18a")
+    ms.dev.line_changed(LineSettings(baud=9600), ms.t)
+    assert ms.send(b"\x18a\x03:") == bytes(3)
 
 
 def test_garble_junk_is_never_cr_nor_ff_ms4() -> None:
