@@ -1,0 +1,178 @@
+"""TV-1 ... TV-5: status dumps and the serial line (MP-1 ... MP-7, MP-60 ... MP-65)."""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+import pytest
+import serial
+
+from protocols.mp285 import StatusBlock, Velocity
+from tests.conformance.mp285.wire import (
+    CHAR,
+    CR,
+    DUMP_A,
+    DUMP_B,
+    GET_POSITION,
+    GET_STATUS,
+    LONG_X,
+    ZEROS,
+    DaemonLog,
+    Host,
+    OpenTarget,
+    assert_at,
+    connect,
+    hx,
+    show,
+)
+
+if TYPE_CHECKING:
+    from tests.conformance.conftest import DaemonPool
+
+
+def test_tv_01_status_dump_a(open_target: OpenTarget) -> None:
+    """TV-1 (MP-60, MP-65, MP-11): `73 0D` gives dump A of a real MP-285: VERSION 340, STEP_DIV and
+    STEP_MUL 25/4, XSPEED 200 µm/s at low resolution, words least significant byte first."""
+    host = connect(open_target)
+    host.send(GET_STATUS)
+    reply = host.read(33)
+    assert show(reply) == show(DUMP_A)
+    status = StatusBlock.unpack(reply)
+    assert (status.version, status.step_div, status.step_mul) == (340, 25, 4)
+    assert status.velocity == Velocity(200, high=False)
+
+
+@pytest.mark.timing
+def test_tv_01_status_reply_is_paced(open_target: OpenTarget) -> None:
+    """TV-1 (MP-3): one character per character time: the first byte completes one character time
+    after the `s` frame, the 33rd 34.4 ms after the first byte started."""
+    host = connect(open_target)
+    done = host.send(GET_STATUS)
+    host.read(1)
+    assert_at(time.monotonic(), done + CHAR)
+    host.read(32)
+    assert_at(time.monotonic(), done + 33 * CHAR)
+
+
+@pytest.mark.parametrize(
+    ("profile", "expected"),
+    [("mp285a-v302", DUMP_B), ("mp285a", DUMP_B[:24] + hx("90 01 90 01") + DUMP_B[28:])],
+    ids=["mp285a-v302", "mp285a"],
+)
+def test_tv_02_status_dump_b(open_target: OpenTarget, profile: str, expected: bytes) -> None:
+    """TV-2 (MP-65, MP-63, MP-2): an MP-285A host with RTS/CTS; `mp285a-v302` gives the real dump B
+    byte for byte, `mp285a` differs only in STEP_DIV/STEP_MUL (400/400, nm per 10 µsteps)."""
+    host = connect(open_target, profile)
+    assert host.port.rtscts
+    host.send(GET_STATUS)
+    assert show(host.read(33)) == show(expected)
+
+
+@pytest.mark.parametrize(("baud", "error"), [(19200, "34"), (4800, "31")])
+def test_tv_03_host_at_another_baud_gets_no_reply(open_target: OpenTarget, baud: int, error: str) -> None:
+    """TV-3 (MP-1, MP-6): at 19200 baud `63 0D` reaches the device as the single byte `91`, at 4800
+    as `1E` (framing error), `66` (framing error), `80`: no CR, so no reply. A CR sent at the right
+    baud then ends that bad frame, with '4' after the unknown command `91` (MP-21) or '1' after the
+    framing errors (MP-24), which shows what the device decoded."""
+    host = connect(open_target, baudrate=baud)
+    host.send(GET_POSITION)
+    host.quiet(0.2)
+    host.port.baudrate = 9600
+    host.exchange(CR, hx(f"{error} 0D"))
+
+
+def test_tv_03_two_stop_bits_corrupt_nothing(open_target: OpenTarget) -> None:
+    """TV-3 (MP-6): only the first stop bit is checked, so a 9600 8N2 host gets normal replies."""
+    host = connect(open_target, stopbits=serial.STOPBITS_TWO)
+    host.exchange(GET_POSITION, ZEROS + CR)
+
+
+def test_tv_03_line_mismatch_ignore_passes_bytes(open_target: OpenTarget) -> None:
+    """TV-3 (MP-6): `line_mismatch: ignore` passes a 19200-baud host's bytes unchanged."""
+    host = connect(open_target, overrides={"knobs": {"line_mismatch": "ignore"}}, baudrate=19200)
+    host.exchange(GET_POSITION, ZEROS + CR)
+
+
+@pytest.mark.control
+@pytest.mark.parametrize(
+    ("settings", "line"),
+    [
+        (
+            {"baudrate": 19200},
+            "dut/main: host uses 19200 8N1, device expects 9600 8N1; "
+            "traffic will be garbled (line_mismatch=garble)",
+        ),
+        (
+            {"stopbits": serial.STOPBITS_TWO},
+            "dut/main: host uses 9600 8N2, device expects 9600 8N1; "
+            "only the stop bits differ, which corrupts nothing (line_mismatch=garble)",
+        ),
+    ],
+    ids=["19200", "8N2"],
+)
+def test_tv_03_mismatch_is_logged_once(
+    open_target: OpenTarget, daemon_pool: DaemonPool, settings: dict[str, object], line: str
+) -> None:
+    """TV-3 (MP-4, MP-5): one warning naming device, port, both settings and the knob in force; the
+    traffic that follows logs nothing more."""
+    log = DaemonLog(daemon_pool.get("mp285", None, "realistic", False))
+    log.drain()
+    host = connect(open_target, **settings)
+    assert log.wait_line("host uses") == f"stage-emu: {line}"
+    host.send(GET_POSITION)
+    host.port.timeout = 0.1
+    host.port.read(13)  # the reply, or nothing on a garbled line: only the log matters here
+    assert not [entry for entry in log.drain() if "host uses" in entry]
+
+
+@pytest.mark.parametrize("frame", ["63 0D", "7A 63 0D"])
+def test_tv_04_parity_host_gets_a_frame_error(
+    open_target: OpenTarget, request: pytest.FixtureRequest, frame: str
+) -> None:
+    """TV-4 (MP-6, MP-24): an 8E1 host's `63` reaches the device with a framing error (its parity
+    bit, 0, sits in the stop position) and its CR clean, so the device answers `31 0D`, which that
+    host decodes as `00` (framing error) and `C3` (parity error). After the unknown `7A` the '1'
+    replaces the pending '4'."""
+    if not request.config.getoption("--port"):
+        pytest.skip(
+            "a pseudo-terminal cannot carry parity (the pty driver clears PARENB, so the emulator "
+            "would see an 8E1 host as 8N1, MP-4): needs an RFC 2217 transport or a real port"
+        )
+    host = connect(open_target, parity=serial.PARITY_EVEN)
+    host.exchange(hx(frame), hx("00 C3"))
+
+
+def start_tv05_move(open_target: OpenTarget, rtscts: bool) -> Host:
+    """`mp285a` after `56 C8 00 0D`: the TV-31 move, 1.0 s into it. Which bytes are lost does not
+    depend on the exact instant, so device time runs 10×."""
+    host = connect(open_target, "mp285a", scale=10, rtscts=rtscts)
+    host.exchange(hx("56 C8 00 0D"), CR)
+    host.send(LONG_X)
+    host.quiet(1.0)
+    return host
+
+
+@pytest.mark.control
+@pytest.mark.parametrize(("interrupt", "replies"), [("03 63 0D", "3D 0D 30 0D"), ("03", "3D 0D")])
+def test_tv_05_usb_without_rtscts_loses_bytes_while_busy(
+    open_target: OpenTarget, interrupt: str, replies: str
+) -> None:
+    """TV-5 (MP-7, MP-2): a USB host without RTS/CTS interrupts the move with `03 63 0D`: `3D` (the
+    ^C is the kept byte), `63 0D` are lost, the move's `0D`, then `30 0D`. A lone ^C works
+    normally. The device is idle again afterwards."""
+    host = start_tv05_move(open_target, rtscts=False)
+    host.exchange(hx(interrupt), hx(replies))
+    assert len(host.position()) == 13
+    host.quiet(0.1)
+
+
+@pytest.mark.control
+def test_tv_05_with_rtscts_nothing_is_lost(open_target: OpenTarget) -> None:
+    """TV-5 (MP-7): with RTS/CTS the same bytes behave as TV-32: `3D`, the position, `0D`."""
+    host = start_tv05_move(open_target, rtscts=True)
+    host.exchange(hx("03 63 0D"), hx("3D"))
+    data = host.read(13)
+    assert 0 < int.from_bytes(data[:4], "little", signed=True) < 25_000, show(data)
+    assert data[4:] == ZEROS[4:] + CR, show(data)
+    host.expect(CR)
