@@ -1,6 +1,8 @@
 """python-microscope 0.7.0's ASIMS2000 driver against the model, through a fake serial port on the
-manual clock (TV-218): INFO probing with an absent axis silent, SPEED read-back by offset, LED by
-fixed offsets, RDSTAT polling, SPIN to a limit and HERE for homing."""
+manual clock: the parts of its use too slow or too build-specific for the conformance run of TV-218
+(tests/conformance/ms2000/test_microscope_driver.py): INFO probing of a two-axis build, where the
+absent axis must stay silent, and homing by SPIN to each limit and HERE (tens of seconds of motion
+per axis)."""
 
 from __future__ import annotations
 
@@ -54,23 +56,6 @@ def driver(monkeypatch: pytest.MonkeyPatch) -> tuple[Any, Harness]:
         return asi.ASIMS2000("fake", lights=["led1"]), harness
 
     return make  # type: ignore[return-value]
-
-
-def test_tv218_initialise_read_move_and_wait_ms106_ms54_ms78_ms81_ms77_ms_led_2(driver: Any) -> None:
-    controller, harness = driver()
-    stage = controller.devices["stage"]
-    assert sorted(stage.axes) == ["X", "Y", "Z"]
-    assert controller._conn.axis_info["X"]["Kp"] == {"value": "100", "command": "KP", "units": None}
-    assert harness.cmd("S X?") == b":A X=5.145600\r\n"  # 0.67 × the 7.68 read back
-    assert stage.axes["X"].position == 0.0
-    assert stage.axes["Y"].position == 0.0
-    assert stage.axes["Z"].position == 0.0
-    stage.axes["X"].move_by(100)
-    assert stage.axes["X"].position == 100.0
-    led = controller.devices["led1"]
-    led.power = 0.5
-    assert led.power == pytest.approx(0.5)
-    assert harness.cmd("LED X?") == b"X=50 :A\r\n"
 
 
 def test_absent_axis_stays_silent_for_the_driver_ms107(driver: Any) -> None:
