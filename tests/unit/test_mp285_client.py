@@ -28,7 +28,7 @@ from protocols.clients.mp285 import (
     error_for,
 )
 from protocols.mp285 import Vector, encode_position
-from tests.unit.mp285.bench import Bench
+from tests.unit.mp285.harness import Bench
 
 DUMP_A = bytes.fromhex(
     "40 00 02 04 07 00 63 00 63 00 14 00 88 13 01 78 70 17 10 27 50 00 00 00 19 00 04 00 C8 00 54 01"

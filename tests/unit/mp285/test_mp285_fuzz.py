@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from emulator.device import LineSettings
 from protocols import mp285 as p
 from protocols.mp285 import Frame, FrameParser, StatusBlock, Vector
-from tests.unit.mp285.bench import Bench
+from tests.unit.mp285.harness import Bench
 
 # derandomized: the same examples on every run (unit tests must be deterministic); long randomized
 # campaigns are run by hand with other settings

@@ -10,7 +10,7 @@ from emulator.device import ControlError, HostServices, LineSettings
 from emulator.profile import load_profile
 from emulator.registry import family
 from protocols.mp285 import Download, Execute, Move, Vector, encode_position
-from tests.unit.mp285.bench import CHAR, Bench, hexs
+from tests.unit.mp285.harness import CHAR, Bench, hexs
 
 T0 = 1.0
 TEN_UM = Move(250, 250, 250).encode()

@@ -10,7 +10,7 @@ import pytest
 
 from emulator.device import LineSettings
 from protocols.mp285 import Download, Execute, Move, Vector, encode_position
-from tests.unit.mp285.bench import CHAR, Bench, hexs
+from tests.unit.mp285.harness import CHAR, Bench, hexs
 
 T0 = 1.0
 ZEROS = " ".join(["00"] * 12)
