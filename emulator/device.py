@@ -94,6 +94,9 @@ class Device(ABC):
         self.profile = profile
         self.services = services
         self.log = logging.getLogger(f"stage_emu.device.{name}")
+        #: timed bytes for the host and pushed control-channel events, drained by the take_* methods
+        self._outbox: list[Emission] = []
+        self._events: list[dict[str, Any]] = []
 
     @abstractmethod
     def receive(self, data: bytes, now: float, channel: str = MAIN) -> None:
@@ -107,13 +110,15 @@ class Device(ABC):
     def next_deadline(self) -> float | None:
         """Device time of the next internal event, or None when nothing is scheduled."""
 
-    @abstractmethod
     def take_output(self) -> list[Emission]:
         """Drain the outbox."""
+        out, self._outbox = self._outbox, []
+        return out
 
     def take_events(self) -> list[dict[str, Any]]:
-        """Drain pushed control-channel events (`{"ev": name, ...}`); none by default."""
-        return []
+        """Drain pushed control-channel events (`{"ev": name, ...}`)."""
+        out, self._events = self._events, []
+        return out
 
     @abstractmethod
     def line_settings(self, channel: str = MAIN) -> LineSettings:

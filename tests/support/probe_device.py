@@ -30,9 +30,7 @@ class ProbeDevice(Device):
         super().__init__(name, profile, now, services)
         self.pace_line = profile.config.knobs.pace_line
         self._buffer = bytearray()
-        self._outbox: list[Emission] = []
         self._timers: list[tuple[float, bytes]] = []
-        self._events: list[dict[str, Any]] = []
         self.host: LineSettings | None = None
         self.received: list[tuple[float, bytes]] = []
         self.lines = 0
@@ -68,14 +66,6 @@ class ProbeDevice(Device):
 
     def next_deadline(self) -> float | None:
         return self._timers[0][0] if self._timers else None
-
-    def take_output(self) -> list[Emission]:
-        out, self._outbox = self._outbox, []
-        return out
-
-    def take_events(self) -> list[dict[str, Any]]:
-        out, self._events = self._events, []
-        return out
 
     def line_settings(self, channel: str = MAIN) -> LineSettings:
         line = self.profile.line

@@ -175,8 +175,6 @@ class Mp285Device(Device):
         )
         self._host: LineSettings | None = None
         self._now = now
-        self._outbox: list[Emission] = []
-        self._events: list[dict[str, Any]] = []
         self._phys: list[int] = list(self.stage.power_on_physical_usteps)
         self._origin: list[int] = list(self.stage.origin_usteps_from_bot)
         self._programs: dict[int, tuple[Vector, ...]] = {}
@@ -235,14 +233,6 @@ class Mp285Device(Device):
     def next_deadline(self) -> float | None:
         event = self._next_event()
         return None if event is None else event[0]
-
-    def take_output(self) -> list[Emission]:
-        out, self._outbox = self._outbox, []
-        return out
-
-    def take_events(self) -> list[dict[str, Any]]:
-        out, self._events = self._events, []
-        return out
 
     def line_settings(self, channel: str = MAIN) -> LineSettings:
         return self._line

@@ -67,8 +67,6 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
         self.servo_s = self.cfg.servo_ms / 1000
         self.scheduler = Scheduler()
         self._now = now
-        self._outbox: list[Emission] = []
-        self._events: list[dict[str, Any]] = []
         identity = {
             "build": self.cfg.build_name,
             "version": self.cfg.version,
@@ -140,14 +138,6 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
 
     def next_deadline(self) -> float | None:
         return self.scheduler.next_due()
-
-    def take_output(self) -> list[Emission]:
-        out, self._outbox = self._outbox, []
-        return out
-
-    def take_events(self) -> list[dict[str, Any]]:
-        out, self._events = self._events, []
-        return out
 
     def push_event(self, event: dict[str, Any]) -> None:
         self._events.append(event)
