@@ -403,7 +403,8 @@ def decode_command(frame: bytes) -> Command:
 
 
 def reply_length(command: Command) -> int | None:
-    """Bytes of the final reply when nothing goes wrong; None when it depends on the device (`u`)."""
+    """Bytes of the final reply when nothing goes wrong; None when it depends on the device (`u`, and
+    ^C: `0D` idle, `3D 0D` during a move)."""
     if isinstance(command, Interrupt):
         return None
     return COMMANDS[command.BYTE].reply

@@ -1,4 +1,4 @@
-"""Sutter MP-285 / MP-285A controller: profile schema and sans-I/O device model (docs/mp285.md).
+"""Sutter MP-285 / MP-285A controller: the sans-I/O device model (docs/mp285.md).
 
 Rule IDs (MP-n) refer to the behaviour reference in docs/mp285.md. The wire format lives in
 protocols/mp285.py; this module decides what the controller does with it and when:
@@ -63,6 +63,9 @@ INTERRUPTED_REPLIES = {
     "error8": proto.error_reply(ErrorCode.MOVE_INTERRUPTED),
     "error8_4": proto.error_reply(proto.combine_errors(ErrorCode.MOVE_INTERRUPTED, ErrorCode.BAD_COMMAND)),
 }
+#: stands in held input for the `error8_4` drop of the frame being parsed, so that the drop is
+#: replayed in its turn (MP-53, MP-52)
+ABANDON_FRAME = (-1, False)
 
 
 # ---- motion (MP-43 ... MP-46) ----------------------------------------------------------------------
@@ -318,7 +321,7 @@ class Mp285Device(Device):
             return {"powered_at": self._powering_until}
         if name == "crash":
             signature = params.get("signature", params.get("crash_signature", self.knobs.crash_signature))
-            if signature not in SIGNATURE_BYTES:
+            if not isinstance(signature, str) or signature not in SIGNATURE_BYTES:
                 raise ControlError(
                     f"signature must be one of {', '.join(SIGNATURE_BYTES)}, got {signature!r}"
                 )
@@ -465,7 +468,6 @@ class Mp285Device(Device):
             self._send(t, proto.error_reply(ErrorCode.SP_OVERRUN), reply=False)
             self._show_error(ErrorCode.SP_OVERRUN)
             self._parser.reset()
-            self._hold = None
             self._lockup_at = None
         elif kept is not None:
             self._dispatch(kept[0], kept[1], t)
@@ -482,7 +484,7 @@ class Mp285Device(Device):
         if t < self._deaf_until:
             return  # MP-56
         if self._roe_crash_due(t):
-            self._crash(t, self._signature)
+            self._crash(t, SIGNATURE_BYTES[self.knobs.crash_signature])
             self._crashed_input(byte, framing_error, t)
             return
         if self._flow_starved() and self._busy(t):
@@ -504,7 +506,7 @@ class Mp285Device(Device):
                 self._execute(item, t)
         limit = self.knobs.lockup_incomplete_frame_s
         in_frame = self._parser.state is not ParseState.COMMAND
-        self._lockup_at = t + limit if limit is not None and in_frame and not self._locked else None
+        self._lockup_at = t + limit if limit is not None and in_frame else None
 
     def _byte_during_move(self, byte: int, framing_error: bool, t: float) -> None:
         """§7: a byte while an `m`, `k` or `e` is outstanding."""
@@ -520,9 +522,8 @@ class Mp285Device(Device):
             self._halt(run, t, BYTE_HALT)  # MP-51
             if self.knobs.move_interrupt_reply == "error8_4":  # MP-53: the interrupting frame is dropped
                 if not (at_command and clean and byte in (CR, LF)):
-                    for item in (parser.abandon(None), parser.feed_byte(byte, framing_error)):
-                        if item is not None:
-                            self._execute(item, t)
+                    self._abandon_frame()
+                    self._frame_during_move(byte, framing_error, t)
                 return
         self._frame_during_move(byte, framing_error, t)
 
@@ -557,6 +558,13 @@ class Mp285Device(Device):
             return
         self._hold = [(b, False) for b in before] + [(byte, framing_error)]
 
+    def _abandon_frame(self) -> None:
+        """MP-53 `error8_4`: drop the frame being parsed (at most its command byte, so never an
+        overrun) through its CR; behind held input the drop waits its turn."""
+        self._parser.abandon(None)
+        if self._hold is not None:
+            self._hold.append(ABANDON_FRAME)
+
     def _release_hold(self, t: float) -> None:
         """Replay held bytes as if they arrived now, in order (MP-52); a reset among them clears the
         rest (MP-57)."""
@@ -568,7 +576,10 @@ class Mp285Device(Device):
         for byte, framing_error in held:
             if self._epoch != epoch:
                 break
-            self._dispatch(byte, framing_error, t)
+            if (byte, framing_error) == ABANDON_FRAME:
+                self._abandon_frame()
+            else:
+                self._dispatch(byte, framing_error, t)
 
     # ---- items and commands ----------------------------------------------------------------------
 
@@ -776,10 +787,11 @@ class Mp285Device(Device):
         self._refresh_display()
 
     def _drop_input(self) -> None:
+        """Partial frames, held input and the MP-7 register. Characters still on a garbled line
+        (`_rx_queue`) are not received yet: they arrive in their time, like bytes on a clean line."""
         self._epoch += 1
         self._parser.reset()
         self._hold = None
-        self._rx_queue.clear()
         self._clear_register()
         self._lockup_at = None
 

@@ -119,7 +119,7 @@ CONTROLLER = Struct(
             Str(pattern=HEX32, pattern_text="32 hex bytes"),
             Derived(lambda v: DUMP_B if v["model"] == "mp285a" else DUMP_A, "dump A (MP-285), B (MP-285A)"),
             "MP-60",
-            "status block at power-on; FLAGS bits 4-5, FLAGS_2 bit 2 and bytes 24-31 are computed",
+            "status block at power-on; FLAGS bit 4 (5 per MP-64), FLAGS_2 bit 2 and bytes 24-31 are computed",
         ),
         Field(
             "firmware_version", Int(0, 0xFFFF), _template_word(30), "MP-60", "VERSION word: firmware × 100"

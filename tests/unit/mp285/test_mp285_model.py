@@ -147,6 +147,22 @@ def test_error8_4_discards_the_interrupting_move() -> None:
     assert bench.snapshot()["position"]["usteps"]["X"] == 5000
 
 
+@pytest.mark.parametrize(
+    ("knobs", "interrupting"),
+    [({}, b"c\r"), ({"query_interrupts_move": False}, b"cx\r")],
+)
+def test_error8_4_drops_the_interrupting_frame_behind_held_input(knobs: dict, interrupting: bytes) -> None:
+    """MP-53 `error8_4`, MP-52: behind a held LF (MP-50) the interrupting frame is still dropped
+    through its CR; only the LF is answered after `3C 0D`."""
+    bench = Bench(overrides={"knobs": {"move_interrupt_reply": "error8_4", **knobs}})
+    bench.write(LONG_X + b"\n", done_at=T0 + CHAR)
+    bench.run(T0 + 0.5)
+    bench.write(interrupting, done_at=T0 + 1 + CHAR)  # the halting byte (`c`, or `x`) at T0 + 1
+    bench.run(T0 + 2)
+    assert bench.emissions() == at(T0 + 1.15, "3C 0D", "0D")
+    assert bench.snapshot()["parser"] == "command"
+
+
 def test_bad_terminator_interrupts_when_queries_do_not() -> None:
     """MP-51 with `query_interrupts_move: false`: only a bad terminator halts; the bad frame waits."""
     bench = long_move({"query_interrupts_move": False})
@@ -262,6 +278,17 @@ def test_garbled_traffic_both_ways_with_exact_times() -> None:
     assert bench.snapshot()["line"]["garbled"] is True
 
 
+def test_garbled_bytes_in_flight_survive_crash_recovery() -> None:
+    """MP-6, MP-78: an 8N2 host's `03 63 0D` in one write: the ^C recovers the unit and the `c`
+    behind it, still on the wire then, is answered (a reset clears input received, not in flight)."""
+    host = LineSettings(9600, None, None, 2, False, False)
+    bench = Bench(overrides={"knobs": {"crash_recovery": "ctrl_c"}}, host=host)
+    bench.control("crash", signature="silent")
+    bench.write(b"\x03c\r", at=T0)
+    bench.run(T0 + 0.1)
+    assert bench.take() == b"\r" + encode_position(0, 0, 0)
+
+
 def test_set_line_from_the_front_panel() -> None:
     """MP-1: the device's own settings change through the control channel; then the host mismatches."""
     bench = Bench()
@@ -335,8 +362,23 @@ def test_crash_during_a_move_never_replies() -> None:
     bench.run(T0 + 10)
     assert bench.emissions() == []
     assert bench.snapshot()["position"]["usteps"]["X"] == 5000
-    with pytest.raises(ControlError):
-        bench.control("crash", signature="loud")
+    for signature in ("loud", ["nul"], {"nul": 1}):
+        with pytest.raises(ControlError, match="signature must be one of"):
+            bench.control("crash", signature=signature)
+
+
+def test_roe_crash_uses_the_profile_signature() -> None:
+    """MP-79, MP-77: an ROE crash sends `crash_signature`, not the signature of an earlier injected
+    crash (a power cycle restores the power-on state, MP-76)."""
+    bench = Bench(overrides={"knobs": {"roe_crash": True, "power_on_s": 0.1}})
+    bench.control("crash", signature="zero_char")
+    bench.control("power_cycle")
+    bench.run(T0)
+    bench.take()
+    bench.control("roe", axis="X", clicks=1)
+    bench.write(b"c", at=T0 + 0.7)
+    bench.run(T0 + 0.8)
+    assert bench.take() == bytes(17)
 
 
 def test_lockup_while_discarding() -> None:
