@@ -59,7 +59,7 @@ def host_settings(master: int) -> LineSettings:
     baud = _SPEEDS.get(ospeed) or _SPEEDS.get(ispeed)
     if cflag & CBAUD == BOTHER:
         raw = fcntl.ioctl(master, TCGETS2, bytes(44))
-        baud = struct.unpack_from("I", raw, 40)[0]
+        baud = struct.unpack_from("I", raw, 40)[0] or None  # 0 is no rate at all: treat as unknown
     return LineSettings(
         baud=baud,
         data_bits=None,
