@@ -53,26 +53,29 @@ class NvStore:
             log.error("%s: cannot save non-volatile memory to %s: %s", self.device_id, self.path, exc)
 
     def erase(self) -> None:
-        """Forget everything (factory-fresh flash) and remove the file."""
+        """Forget everything (factory-fresh flash) and remove the file. A failing disk is logged."""
         self._data = {}
-        if self.path is not None:
-            with contextlib.suppress(FileNotFoundError):
-                self.path.unlink()
+        if self.path is None:
+            return
+        try:
+            self.path.unlink(missing_ok=True)
+        except OSError as exc:
+            log.error("%s: cannot erase non-volatile memory %s: %s", self.device_id, self.path, exc)
 
     def _read(self) -> dict[str, Any]:
         if self.path is None:
             return {}
         try:
-            text = self.path.read_text(encoding="utf-8")
+            raw = self.path.read_bytes()
         except FileNotFoundError:
             return {}
         except OSError as exc:
             log.error("%s: cannot read non-volatile memory %s: %s", self.device_id, self.path, exc)
             return {}
         try:
-            data = json.loads(text)
-        except ValueError as exc:
-            self._set_aside(self.path, f"not valid JSON ({exc})")
+            data = json.loads(raw.decode("utf-8"))
+        except (ValueError, RecursionError) as exc:  # bad UTF-8 is a ValueError; absurd nesting recurses
+            self._set_aside(self.path, f"not valid UTF-8 JSON ({exc})")
             return {}
         if not isinstance(data, dict):
             self._set_aside(self.path, "not a JSON object")
@@ -82,6 +85,10 @@ class NvStore:
     def _set_aside(self, path: Path, why: str) -> None:
         stamp = time.strftime("%Y%m%dT%H%M%S")
         aside = path.with_name(f"{path.name}.corrupt-{stamp}")
+        serial = 1
+        while aside.exists():  # a second corrupt file within the same second keeps the first
+            serial += 1
+            aside = path.with_name(f"{path.name}.corrupt-{stamp}-{serial}")
         try:
             path.rename(aside)
         except OSError as exc:

@@ -194,8 +194,9 @@ class CommandLine:
 
 
 def split_command(line: str) -> CommandLine:
-    """Split a command line (without its CR). `\\` anywhere first is HALT whatever follows (MS-20);
-    an unknown token starting with one of `\\ / ! ~ @` is split after that character (MS-19)."""
+    """Split a command line (without its CR). A line whose first non-blank character is `\\` is HALT
+    whatever follows (MS-20); an unknown token starting with one of `\\ / ! ~ @` is split after that
+    character (MS-19)."""
     text = normalize(line).lstrip(" ")
     if text.startswith("\\"):
         return CommandLine(lookup("\\"), "\\", text[1:])

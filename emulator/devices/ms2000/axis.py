@@ -216,7 +216,7 @@ class Axis:
             if self.ensync_mm is not None:
                 side = (x > self.ensync_mm) - (x < self.ensync_mm)
                 if side and self.ensync_side and side != self.ensync_side:
-                    self.ctl.ensync_toggle(t)
+                    self.ctl.ensync_toggle()
                 if side:
                     self.ensync_side = side
         self._sample_t = t
@@ -472,8 +472,9 @@ class Axis:
         return self.enabled and self.s.maintain != 5
 
     def _check_runaway(self, t: float, error_counts: float) -> None:
+        """Beyond RU the motor is disabled: whatever the axis was doing stops there (MS-62)."""
         if self._servo_active() and error_counts / self.counts_per_mm > self.s.runaway:
-            self.enabled = False
+            self.ctl.disable_motor(self, t)
             self._cancel_correction()
             self.ctl.log_error(30 + self.index)
 

@@ -48,6 +48,8 @@ class MoveGroup:
 
     activity: Activity = Activity.MOVE
     axes: set[Axis] = field(default_factory=set)
+    #: letters of the axes that completed as part of the group, in landing order
+    landed: list[str] = field(default_factory=list)
 
 
 def garble(data: bytes) -> bytes:
@@ -375,9 +377,10 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
         return self.axis_named("Z")
 
     def relative_goal(self, axis: Axis, delta_mm: float, t: float) -> float:
-        """R: the current target (the actual position if manual motion intervened) plus the
-        distance quantised to whole counts (MS-45, MS-51)."""
-        base = round_half_away(axis.pos(t)) if axis.activity is Activity.MANUAL else axis.target
+        """R: the current target plus the distance quantised to whole counts (MS-45, MS-51). Manual
+        motion, SPIN and VE have no target: the move they end starts from the actual position (MS-71)."""
+        open_ended = axis.activity in (Activity.MANUAL, Activity.SPIN, Activity.VELOCITY)
+        base = round_half_away(axis.pos(t)) if open_ended else axis.target
         return base + round_half_away(axis.s.polarity * delta_mm * axis.counts_per_mm)
 
     def start_moves(
@@ -407,10 +410,11 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
         if group is None:
             return
         group.axes.discard(axis)
+        group.landed.append(axis.letter)
         if not group.axes:
-            self._move_complete(group, [axis.letter], t)
+            self._move_complete(group, t)
 
-    def _move_complete(self, group: MoveGroup, letters: list[str], t: float) -> None:
+    def _move_complete(self, group: MoveGroup, t: float) -> None:
         self.push_event(
             {
                 "ev": "move_complete",
@@ -425,7 +429,7 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
         if group.activity is Activity.MOVE:
             self.ttl.pulse(t)
         for module in self.modules.values():
-            module.move_complete(letters, t)
+            module.move_complete(group.landed, t)
 
     def halt_all(self, t: float) -> bool:
         """Stop every motion and module activity (MS-76); True if a commanded move was running."""
@@ -540,7 +544,7 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
         if module is not None:
             module.in0_trigger(mode, t)
 
-    def ensync_toggle(self, t: float) -> None:
+    def ensync_toggle(self) -> None:
         self.ensync_level ^= 1
 
     # ---- modules ------------------------------------------------------------------------------

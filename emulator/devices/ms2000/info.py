@@ -6,6 +6,7 @@ import math
 from typing import TYPE_CHECKING
 
 from emulator.devices.ms2000.config import INPUT_DEVICES
+from emulator.motion import round_half_away
 from protocols.ms2000 import fixed
 
 if TYPE_CHECKING:
@@ -30,7 +31,7 @@ def info_block(ctl: MS2000, axis: Axis, t: float) -> list[str]:
     s = axis.s
     c = s.counts_per_mm
     servo_ms = ctl.cfg.servo_ms
-    steps = max(1, round(s.accel_ms / servo_ms))
+    steps = max(1, round_half_away(s.accel_ms / servo_ms))
     vmax_enc = math.floor(min(s.speed, axis.max_speed) * c * servo_ms / 1000)
     dv_enc = vmax_enc // steps
     pc_tag = "[PC]" if ctl.knobs.info_fix_pc_tag else "[PC}"

@@ -4,6 +4,9 @@ live in the device's flash (flash.py)."""
 
 from __future__ import annotations
 
+import math
+from typing import Any
+
 from emulator.devices.ms2000.axis import LOWER, UPPER
 from emulator.devices.ms2000.config import baud_of
 from emulator.devices.ms2000.settings import (
@@ -68,33 +71,34 @@ class PowerMixin:
             physical = self.flash.section("physical") or {}
             for axis in self.axes:
                 counts = physical.get(axis.hw_letter)
-                if isinstance(counts, int | float):
+                if _finite(counts):
                     axis.traj = axis.traj.rest(t, float(counts))
-        self._restore_settings(t)
+        self._restore_settings()
         positions = self.flash.section("positions") or {}
         for axis in self.axes:
             saved = positions.get(axis.hw_letter)
             axis.origin = 0.0
             here = axis.user_mm(t)
-            axis.origin = here - saved if isinstance(saved, int | float) else here
+            axis.origin = here - saved if _finite(saved) else here
         self._restart(t)
         if not same:
             self.log_error(IDENTITY_MISMATCH_CODE)
 
-    def _restore_settings(self, t: float) -> None:
+    def _restore_settings(self) -> None:
         saved = self.flash.section("saved") or {}
         auto = self.flash.section("auto") or {}
-        saved_axes = saved.get("axes") or {}
-        auto_axes = auto.get("axes") or {}
+        saved_axes = _mapping(saved.get("axes"))
+        auto_axes = _mapping(auto.get("axes"))
         for axis in self.axes:
             axis.s = from_plain(self._factory_axis(axis.hw_letter), saved_axes.get(axis.hw_letter))
             axis.auto = from_plain(self.factory_auto(axis.hw_letter), auto_axes.get(axis.hw_letter))
             axis.letter = chr(axis.s.rename) if axis.s.rename else axis.hw_letter
         self.card = from_plain(self._factory_card(), saved.get("card"))
         self.card_auto = from_plain(CardAuto(), auto.get("card"))
-        saved_modules = saved.get("modules") or {}
+        saved_modules = _mapping(saved.get("modules"))
         for name, module in self.modules.items():
-            module.restore(saved_modules.get(name))
+            data = saved_modules.get(name)
+            module.restore(data if isinstance(data, dict) else None)
 
     def _restart(self, t: float) -> None:
         """What power-up and reset share: motion stopped, volatile state cleared, clocks restarted."""
@@ -108,6 +112,7 @@ class PowerMixin:
             axis.ensync_mm = None
         self.ensync_level = 0
         self.error_log.clear()
+        self.trajectory_log.clear()
         self.user_counter = 0
         self.lcd_text = None
         self.low_level = False
@@ -135,11 +140,13 @@ class PowerMixin:
         self._cancel_pending(t, reply=False)
         for axis in self.axes:
             axis.stop(t)
-        self._restore_settings(t)
+        self._restore_settings()
         for axis in self.axes:
             axis.origin = 0.0
             axis.origin = axis.user_mm(t)
         self._restart(t)
+        # lines that waited behind a blocking command the reset cancelled still run, in order (MS-13)
+        self._drain(t)
 
     def power_cycle(self, t: float) -> None:
         """Power off (positions saved unless `SP X=1`) and on (MS-112)."""
@@ -194,3 +201,12 @@ class PowerMixin:
         """Erase the device's flash (a factory-fresh controller), e.g. for a host's `reset` op."""
         self.flash.store.erase()
         self.flash.data = {}
+
+
+def _mapping(value: Any) -> dict[str, Any]:
+    """A section of the store that should be a JSON object ({} when it is not)."""
+    return value if isinstance(value, dict) else {}
+
+
+def _finite(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)

@@ -12,6 +12,8 @@ Positions of limits and home are machine millimetres (fixed hardware locations, 
 from __future__ import annotations
 
 import dataclasses
+import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
@@ -94,24 +96,53 @@ def to_plain(value: Any) -> dict[str, Any]:
     return dataclasses.asdict(value)
 
 
+#: values the model divides by, loops on or prints as they are; only a hand-edited or foreign store
+#: holds others, and they keep the factory value
+_USABLE: dict[str, Callable[[Any], bool]] = {
+    "speed": lambda v: v > 0,
+    "accel_ms": lambda v: v >= 1,
+    "counts_per_mm": lambda v: v > 0,
+    "unit_multiplier": lambda v: v != 0,
+    "polarity": lambda v: v in (1, -1),
+    "rename": lambda v: v is None or 65 <= v <= 90,
+    "js_fast": lambda v: v != 0,
+    "vb_decimals": lambda v: 0 <= v <= 6,
+    "rt_report_ms": lambda v: v > 0,
+    "stop_bits": lambda v: v in (1, 2),
+    "user_string": lambda v: len(v) <= 20 and all(" " <= ch <= "~" for ch in v),
+}
+
+
+def _any(value: Any) -> bool:
+    return True
+
+
 def from_plain(factory: T, data: Any) -> T:
-    """`factory` updated with the known keys of `data` (unknown or mistyped keys are ignored, so a
-    store written by another version still loads)."""
+    """`factory` updated with the known keys of `data`. Unknown keys and values of another type, not
+    finite or unusable (`_USABLE`) are ignored, so a store written by another version or edited by
+    hand still loads."""
     if not isinstance(data, dict):
         return dataclasses.replace(factory)  # type: ignore[type-var]
     current = to_plain(factory)
     updates = {}
     for key, value in data.items():
-        if key in current and _same_kind(current[key], value):
-            updates[key] = value
+        if key in current and _same_kind(current[key], value) and _USABLE.get(key, _any)(value):
+            updates[key] = _merged(current[key], value)
     return dataclasses.replace(factory, **updates)  # type: ignore[type-var]
 
 
 def _same_kind(old: Any, new: Any) -> bool:
-    if old is None or new is None:
-        return True
+    if old is None:  # the only optional setting, Z2B's pending rename, is an int when set
+        return new is None or (isinstance(new, int) and not isinstance(new, bool))
     if isinstance(old, bool) or isinstance(new, bool):
         return isinstance(old, bool) and isinstance(new, bool)
     if isinstance(old, int | float):
-        return isinstance(new, int | float)
+        return isinstance(new, int | float) and math.isfinite(new)
     return isinstance(new, type(old))
+
+
+def _merged(old: Any, new: Any) -> Any:
+    """A stored mapping (BCA assignments) keeps the factory keys, each updated by a value of its kind."""
+    if isinstance(old, dict):
+        return {**old, **{k: v for k, v in new.items() if k in old and _same_kind(old[k], v)}}
+    return new

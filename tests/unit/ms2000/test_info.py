@@ -177,3 +177,10 @@ def test_module_command_absent_from_xy_build_ms118(make: type[Harness]) -> None:
     assert h.cmd("TTL Y=9") == b":N-4\r\n"
     lines = [b"STD_XY", b"Motor Axes: X Y", b"CMDs: XYZFTR", b"BootLdr V:1", b"Hdwr REV.E"]
     assert h.cmd("BU X") == b"\r".join([*lines, b"LL COMMANDS", b"RING BUFFER 50", b"INO_INT"]) + b"\r\n"
+
+
+def test_info_ramp_steps_round_half_away_ms106_ms48(ms: Harness) -> None:
+    """Max Ramp Stps = round(AC / servo_ms): 15 / 6 = 2.5 gives 3, as the firmware rounds."""
+    ms.cmd("AC X=15")
+    row = ms.cmd("I X").split(b"\r")[3]
+    assert row.endswith(b"Max Ramp Stps:         3"), row

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from emulator.devices.ms2000.config import SCHEMA
-from emulator.devices.ms2000.modules import MODULES
+from emulator.devices.ms2000.modules import MODULES, Module
 from emulator.profile import ProfileError
 from tests.unit.ms2000.conftest import Harness
 
@@ -182,3 +182,38 @@ def test_without_ino_int_only_mode_0_ms90(make: type[Harness]) -> None:
     assert h.cmd("TTL X=1") == b":N-4\r\n"
     assert h.cmd("ZS X?") == b":N-1\r\n"
     assert h.cmd("TTL X=0") == ACK
+
+
+def test_autoplay_with_zero_delay_steps_each_servo_period_ms_rb_5_ms93(loaded: Harness) -> None:
+    """`RT Z=0` is in range; repeating autoplay must not spin forever at one instant."""
+    assert loaded.cmd("RT Z=0") == ACK
+    assert loaded.cmd("RM F=3") == ACK
+    assert loaded.cmd("RM") == ACK
+    loaded.wait(0.1)
+    assert loaded.cmd("RM F?") == b":A F=131\r\n"
+    assert loaded.cmd("RM") == ACK
+    assert loaded.cmd("RM F?") == b":A F=3\r\n"
+
+
+def test_trailing_value_rounds_like_led_x_ms_led_3(ms: Harness) -> None:
+    """`TTL Y=9 n` sets `LED X=n`, so n rounds half away from zero like the LED command."""
+    assert ms.cmd("TTL Y=9 54.5") == ACK
+    assert ms.cmd("LED X?") == b"X=55 :A\r\n"
+    assert ms.cmd("LED X=54.5") == ACK
+    assert ms.cmd("LED X?") == b"X=55 :A\r\n"
+
+
+def test_move_complete_hook_gets_every_landed_axis(ms: Harness) -> None:
+    seen: list[list[str]] = []
+
+    class Probe(Module):
+        name = "PROBE"
+
+        def move_complete(self, axes: list[str], now: float) -> None:
+            seen.append(list(axes))
+
+    ms.dev.modules["PROBE"] = Probe(ms.dev)
+    ms.cmd("M X=1000 Y=50000 Z=10")
+    ms.idle()
+    assert len(seen) == 1 and sorted(seen[0]) == ["X", "Y", "Z"]
+    assert seen[0][-1] == "Y"

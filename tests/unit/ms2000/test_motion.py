@@ -411,3 +411,41 @@ def test_superseded_move_does_not_complete(ms: Harness) -> None:
     ms.cmd("M X=0")
     ms.idle()
     assert len(ms.take_events("move_complete")) == 1
+
+
+def test_runaway_during_move_stops_the_disabled_axis_ms62_ms75(ms: Harness) -> None:
+    """A disabled motor does not carry on with its move: the axis stops, not busy, `D`."""
+    ms.cmd("M X=100000")
+    ms.wait(0.3)
+    ms.input("disturb", axis="X", um=2000)
+    assert ms.cmd("RS X") == b":A 8\r\n"
+    assert ms.cmd("/") == b"N\r\n"
+    stopped = ms.cmd("W X")
+    ms.wait(1.0)
+    assert ms.cmd("W X") == stopped
+    assert ms.cmd("DU Y") == b"30\r:A\r\n"
+
+
+def test_cnts_during_move_lets_the_other_axes_complete_ms45_ms96(ms: Harness) -> None:
+    """CNTS stops its axis; the rest of the move still completes (VB X bit 0 `N`)."""
+    ms.cmd("VB X=1")
+    ms.cmd("M X=100000 Y=20000")
+    ms.wait(0.1)
+    assert ms.cmd("C X=45396") == ACK
+    ms.idle()
+    ms.wait(0.1)
+    assert ms.output() == b"N\r\n"
+    assert ms.cmd("W Y") == b":A 20000\r\n"
+
+
+@pytest.mark.parametrize("start", ["@ X=100", "VE X=1"])
+def test_relative_move_ending_spin_or_vector_starts_from_position_ms71_ms72_ms51(
+    ms: Harness, start: str
+) -> None:
+    """A new move ends SPIN/VE and their target is the position then, so `R` goes on from there."""
+    ms.cmd(start)
+    ms.wait(1.0)
+    here = int(ms.cmd("W X")[3:])
+    assert ms.cmd("R X=10000") == ACK
+    ms.idle()
+    assert ms.cmd("W X") == f":A {here + 10000}\r\n".encode()

@@ -194,3 +194,92 @@ def test_forget_nonvolatile_gives_factory_device(stored: Harness) -> None:
     stored.dev.forget_nonvolatile()
     stored.restart()
     assert stored.cmd("S X?") == b":A X=5.145600\r\n"
+
+
+def test_store_that_is_not_utf8_is_set_aside(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """A store of arbitrary bytes is corrupt like bad JSON: set aside, never a crash (MS-111)."""
+    (tmp_path / "ms2000-0001.json").write_bytes(b"\xff\xfe\x00{")
+    with caplog.at_level(logging.WARNING):
+        h = Harness(state_dir=tmp_path)
+    assert h.cmd("S X?") == b":A X=5.145600\r\n"
+    assert len(list(tmp_path.glob("ms2000-0001.json.corrupt-*"))) == 1
+
+
+def test_nvstore_erase_failure_is_logged(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    (tmp_path / "d.json").mkdir()  # unlink() of a directory fails
+    store = NvStore(tmp_path, "d")
+    with caplog.at_level(logging.ERROR):
+        store.erase()
+    assert "cannot erase" in caplog.text and store.load() == {}
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        {
+            "saved": {
+                "axes": [1],
+                "card": "x",
+                "modules": {"INO_INT": [1], "RING BUFFER": "x", "LED DIMMER": 5},
+            }
+        },
+        {"saved": {"axes": {"X": {"speed": None, "accel_ms": 0, "counts_per_mm": float("nan")}}}},
+        {"saved": {"axes": {"X": {"rename": "abc", "unit_multiplier": 0}, "Y": {"rename": 1000}}}},
+        {"saved": {"card": {"vb_decimals": 400, "rt_report_ms": 0, "js_fast": 0, "user_string": "é€"}}},
+        {"auto": {"axes": {"X": {"soft_lower": None, "aa": "1"}}, "card": {"bca": {"Y": [1], "Q": 2}}}},
+        {"positions": {"X": float("nan"), "Y": True}, "physical": {"X": float("inf")}},
+    ],
+)
+def test_unusable_stored_values_keep_factory_values_ms111(tmp_path: Path, bad: dict) -> None:
+    """Valid JSON holding values of the wrong type or that the model cannot use (hand-edited or
+    foreign stores) are ignored field by field; power-up and every later command still work."""
+    first = Harness(state_dir=tmp_path)
+    first.cmd("SS Z")
+    path = tmp_path / "ms2000-0001.json"
+    data = json.loads(path.read_text())
+    for section, value in bad.items():
+        data[section] = {**data.get(section, {}), **value} if isinstance(value, dict) else value
+    path.write_text(json.dumps(data))
+    h = Harness(state_dir=tmp_path)
+    assert h.cmd("S X?") == b":A X=5.145600\r\n"
+    assert h.cmd("M X=1000 Y=1000") == ACK
+    h.idle()
+    assert h.cmd("W X Y") == b":A 1000 1000\r\n"
+    assert h.cmd("BU Y?") == b"\r\n"
+    h.input("wheel", counts=10)
+    h.input("button", name="at", ms=1500)
+    h.wait(2.0)
+    assert h.cmd("/") == b"N\r\n"
+
+
+def test_reset_mid_blocking_command_runs_waiting_lines_ms112_ms13(ms: Harness) -> None:
+    """0xFF 'R' cancels a pending AZ silently; lines queued behind it still run, in order."""
+    assert ms.send(b"AZ X\rV\r\xffR") == b":A Version: USB-9.2k \r\n"
+    assert ms.cmd("W X") == b":A 0\r\n"
+
+
+def test_savepos_bare_silences_queued_lines_too_ms113(ms: Harness) -> None:
+    assert ms.send(b"AZ X\rSP\rV\r") == b""
+    ms.wait(1.0)
+    assert ms.output() == ACK + ACK
+    assert ms.get("mode") == "silent"
+
+
+def test_trajectory_buffer_is_volatile_ms111_ms112(ms: Harness) -> None:
+    ms.cmd("M X=1000")
+    ms.idle()
+    assert ms.cmd("DU") != ACK
+    assert ms.cmd("~") == ACK
+    assert ms.cmd("DU") == ACK
+    ms.cmd("M X=1000")
+    ms.idle()
+    ms.input("power_cycle")
+    assert ms.cmd("DU") == ACK
+
+
+def test_corrupt_stores_set_aside_in_the_same_second_are_all_kept(tmp_path: Path) -> None:
+    """Each corrupt file is kept for inspection, however quickly they follow one another (MS-111)."""
+    for _ in range(3):
+        (tmp_path / "ms2000-0001.json").write_text("{not json")
+        Harness(state_dir=tmp_path)
+    assert len(list(tmp_path.glob("ms2000-0001.json.corrupt-*"))) == 3

@@ -167,10 +167,12 @@ class SettingsCommands(CommandSet):
         )
 
     def counts(self, call: Call) -> Reply:
-        """CNTS: encoder counts per mm; the stage stays where it is physically (MS-45)."""
+        """CNTS: encoder counts per mm; the stage stops where it is physically (MS-45)."""
+        ctl = self.ctl
 
         def store(axis: Axis, value: float) -> None:
             t = call.now
+            ctl.leave_group(axis)
             axis.stop(t)
             ratio = value / axis.counts_per_mm
             position = round_half_away(axis.pos(t) * ratio)

@@ -273,7 +273,7 @@ class SystemCommands(CommandSet):
         if not [i for i in call.items if i.kind is not Kind.NUMBER]:
             ctl.halt_all(call.now)
             ctl.save_positions(call.now)
-            ctl.scheduler.at(call.now, lambda t: ctl.silence())
+            ctl.silence()  # this reply still goes out; nothing after it is read, queued lines included
             return ctl.ack()
         params = {
             "X": Param(

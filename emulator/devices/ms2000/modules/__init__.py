@@ -113,7 +113,7 @@ class Module:
         return False
 
     def move_complete(self, axes: list[str], now: float) -> None:
-        """A commanded move completed."""
+        """A commanded move completed; `axes` are the letters of the axes it moved to the end."""
 
     def report_mask(self) -> int | None:
         """Axes (bit 0 = first motor axis) that IN0 mode 5 reports, if the module selects them."""

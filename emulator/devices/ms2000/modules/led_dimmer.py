@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 from emulator.devices.ms2000.calls import Call, Param, Reply, one_of, run_settings, within
 from emulator.devices.ms2000.modules import Handler, Module, register
+from emulator.motion import round_half_away
 from emulator.schema import Choice, Field
 
 if TYPE_CHECKING:
@@ -62,7 +63,7 @@ class LedDimmer(Module):
 
     def ttl_trailing_value(self, out_mode: int, value: float, now: float) -> None:
         if out_mode == PWM_MODE and self.ctl.knobs.ttl_pwm_trailing_value == "apply" and 0 <= value <= 100:
-            self.values["X"] = round(value)
+            self.values["X"] = round_half_away(value)
 
     def out0_level(self) -> int | None:
         return 1 if self.values["X"] > 0 else 0

@@ -229,4 +229,6 @@ class RingBuffer(Module):
         self._visit(now)
         if self.pointer == 0 and self.mode == 2:
             return
-        self._play = self.ctl.scheduler.at(now + self.ctl.card.rt_delay_ms / 1000, self._autoplay)
+        # `RT Z=0` is allowed: the next step still waits one servo period rather than loop forever
+        interval = max(self.ctl.card.rt_delay_ms / 1000, self.ctl.servo_s)
+        self._play = self.ctl.scheduler.at(now + interval, self._autoplay)
