@@ -5,7 +5,7 @@ BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 ARGS ?=
 
-.PHONY: run test bench lint clean venv
+.PHONY: run test bench soak lint clean venv
 
 venv: $(STAMP)
 
@@ -24,6 +24,12 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python scripts/bench.py $(ARGS)
+
+# long randomized fuzzing of both device models (EXAMPLES per property; `make test` runs a fixed set)
+EXAMPLES ?= 3000
+soak: $(STAMP)
+	STAGE_EMU_SOAK_EXAMPLES=$(EXAMPLES) $(BIN)/python -m pytest -q -p no:cacheprovider \
+		tests/unit/mp285/test_mp285_fuzz.py tests/unit/ms2000/test_fuzz.py $(ARGS)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -6,19 +6,16 @@ from __future__ import annotations
 
 import json
 
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from emulator.device import LineSettings
 from protocols import mp285 as p
 from protocols.mp285 import Frame, FrameParser, StatusBlock, Vector
+from tests.support.fuzz import fuzz_settings
 from tests.unit.mp285.harness import Bench
 
-# derandomized: the same examples on every run (unit tests must be deterministic); long randomized
-# campaigns are run by hand with other settings
-FUZZ = settings(
-    max_examples=80, deadline=None, derandomize=True, database=None, suppress_health_check=list(HealthCheck)
-)
+FUZZ = fuzz_settings(80)
 
 VALID = [
     p.GetPosition().encode(),

@@ -6,15 +6,16 @@ from __future__ import annotations
 
 import re
 
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from emulator.profile import load_profile
 from protocols import ms2000 as p
+from tests.support.fuzz import fuzz_settings
 from tests.unit.ms2000.conftest import Harness
 
 PROFILE = load_profile("ms2000")
-FUZZ = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FUZZ = fuzz_settings(150)
 WORDS = sorted({w for spec in p.COMMANDS for w in spec.words()} | {"FOO", "!X", "\\junk", ""})
 ALLOWED_ERRORS = {b"1", b"2", b"3", b"4", b"5", b"6", b"21"}
 #: what a reply line may look like: an error, `:A…`, value-first or colon forms, N/B, bare text
