@@ -4,7 +4,6 @@ live in the device's flash (flash.py)."""
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 from emulator.devices.ms2000.axis import LOWER, UPPER
@@ -14,6 +13,7 @@ from emulator.devices.ms2000.settings import (
     AxisSettings,
     CardAuto,
     CardSettings,
+    finite_number,
     from_plain,
     to_plain,
 )
@@ -71,7 +71,7 @@ class PowerMixin:
             physical = self.flash.section("physical") or {}
             for axis in self.axes:
                 counts = physical.get(axis.hw_letter)
-                if _finite(counts):
+                if finite_number(counts):
                     axis.traj = axis.traj.rest(t, float(counts))
         self._restore_settings()
         positions = self.flash.section("positions") or {}
@@ -79,7 +79,7 @@ class PowerMixin:
             saved = positions.get(axis.hw_letter)
             axis.origin = 0.0
             here = axis.user_mm(t)
-            axis.origin = here - saved if _finite(saved) else here
+            axis.origin = here - saved if finite_number(saved) else here
         self._restart(t)
         if not same:
             self.log_error(IDENTITY_MISMATCH_CODE)
@@ -206,7 +206,3 @@ class PowerMixin:
 def _mapping(value: Any) -> dict[str, Any]:
     """A section of the store that should be a JSON object ({} when it is not)."""
     return value if isinstance(value, dict) else {}
-
-
-def _finite(value: Any) -> bool:
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)

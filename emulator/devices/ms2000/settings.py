@@ -113,10 +113,6 @@ _USABLE: dict[str, Callable[[Any], bool]] = {
 }
 
 
-def _any(value: Any) -> bool:
-    return True
-
-
 def from_plain(factory: T, data: Any) -> T:
     """`factory` updated with the known keys of `data`. Unknown keys and values of another type, not
     finite or unusable (`_USABLE`) are ignored, so a store written by another version or edited by
@@ -126,9 +122,18 @@ def from_plain(factory: T, data: Any) -> T:
     current = to_plain(factory)
     updates = {}
     for key, value in data.items():
-        if key in current and _same_kind(current[key], value) and _USABLE.get(key, _any)(value):
+        if key in current and _same_kind(current[key], value) and _usable(key, value):
             updates[key] = _merged(current[key], value)
     return dataclasses.replace(factory, **updates)  # type: ignore[type-var]
+
+
+def _usable(key: str, value: Any) -> bool:
+    return key not in _USABLE or _USABLE[key](value)
+
+
+def finite_number(value: Any) -> bool:
+    """A JSON number the model can compute with (not a bool, not NaN or infinite)."""
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _same_kind(old: Any, new: Any) -> bool:
@@ -137,7 +142,7 @@ def _same_kind(old: Any, new: Any) -> bool:
     if isinstance(old, bool) or isinstance(new, bool):
         return isinstance(old, bool) and isinstance(new, bool)
     if isinstance(old, int | float):
-        return isinstance(new, int | float) and math.isfinite(new)
+        return finite_number(new)
     return isinstance(new, type(old))
 
 
