@@ -10,7 +10,14 @@ A profile file:
     ...                      # the family's own sections (device parameters, behaviour knobs)
 
 `extends` chains are merged parent first (mappings key by key, other values replaced) and checked
-for cycles. Every error names the file, line and key and says what is allowed.
+for cycles. Every error names the file, line and key and says what is allowed, on one line.
+
+Limits (besides those of `emulator.yamlsource` on each file):
+- `MAX_CHAIN` (16): profiles in one extends chain (the bundled ones use at most 3);
+- a reference names a bundled profile or a `.yaml`/`.yml` file; a file reached through `extends`
+  that is not a mapping with `spec:` or `device:` is refused without quoting any of it;
+- a profile extends one of its own family (the child's `device:` line is blamed);
+- `MAX_DESCRIPTION` (200): `description` is one line of printable text.
 """
 
 from __future__ import annotations
@@ -21,11 +28,17 @@ from pathlib import Path as FsPath
 from typing import Any
 
 from emulator import registry
-from emulator.schema import Choice, Field, Int, SchemaError, Struct, describe_rows
-from emulator.yamlsource import Located, SourceError, Where, load_located, merge
+from emulator.schema import Choice, Field, Int, SchemaError, Struct, Text, describe_rows
+from emulator.yamlsource import FileProblem, Located, SourceError, Where, merge, read_source
 
 SPEC_VERSION = 1
 TOP_LEVEL_KEYS = ("spec", "device", "description", "extends")
+PROFILE_SUFFIXES = (".yaml", ".yml")
+MAX_CHAIN = 16
+MAX_DESCRIPTION = 200
+MAX_REFERENCE = 4096  # PATH_MAX
+DESCRIPTION = Text(MAX_DESCRIPTION)
+NOT_A_PROFILE = "is not a profile (a profile is a YAML mapping with spec: and device:)"
 
 
 class ProfileError(SourceError):
@@ -86,15 +99,15 @@ def bundled_names() -> list[str]:
 
 def _is_profile_file(path: FsPath) -> bool:
     try:
-        data = load_located(path.read_text(), str(path)).data
-    except (OSError, SourceError):
+        data = read_source(path).data
+    except SourceError:
         return False
     return isinstance(data, dict) and "device" in data
 
 
 def resolve_reference(ref: str, relative_to: FsPath | None) -> FsPath:
     """A profile reference is a bundled name (`mp285`) or a path (anything with `/` or `.yaml`)."""
-    if "/" in ref or ref.endswith((".yaml", ".yml")):
+    if "/" in ref or ref.endswith(PROFILE_SUFFIXES):
         path = FsPath(ref).expanduser()
         if not path.is_absolute() and relative_to is not None:
             path = relative_to / path
@@ -102,29 +115,75 @@ def resolve_reference(ref: str, relative_to: FsPath | None) -> FsPath:
     return bundled_dir() / f"{ref}.yaml"
 
 
-def _display(path: FsPath) -> str:
+def display_path(path: FsPath) -> str:
+    """`path` as messages show it: relative to the working directory when it is below it."""
     try:
         return str(path.resolve().relative_to(FsPath.cwd()))
-    except ValueError:
+    except (OSError, ValueError, RuntimeError):
         return str(path)
 
 
-def _read(path: FsPath) -> Located:
+def is_rig(data: Any) -> bool:
+    """A rig file (a mapping of `devices`) rather than a profile."""
+    return isinstance(data, dict) and "devices" in data and "device" not in data
+
+
+def _refuse(via: Located | None, ref: str, path: FsPath, message: str) -> ProfileError:
+    """`message` about the profile `ref`, blamed on the `extends:` line that named it if any."""
+    if via is not None:
+        return ProfileError(str(via.error(("extends",), f"{_quoted(ref)} {message}")))
+    return ProfileError(f"{display_path(path)}: {message}")
+
+
+def _quoted(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 80 else text[:79] + "…"
+
+
+def _read_profile(ref: str, path: FsPath, via: Located | None) -> Located:
+    """Read one file of an extends chain. A parent is not trusted to be a profile until it looks
+    like one, so nothing it contains is quoted before that (`extends: /etc/shadow`)."""
+    if not path.name.endswith(PROFILE_SUFFIXES):
+        raise _refuse(via, ref, path, "is not a profile file (its name must end in .yaml or .yml)")
     try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ProfileError(f"{_display(path)}: cannot read profile: {exc.strerror or exc}") from None
-    try:
-        return load_located(text, _display(path))
+        located = read_source(path, display_path(path), quote=via is None)
+    except FileProblem as exc:
+        bundled = "/" not in ref and not ref.endswith(PROFILE_SUFFIXES)
+        if exc.missing and bundled:
+            known = f"bundled profiles: {', '.join(bundled_names()) or 'none'}"
+            if via is None:
+                raise ProfileError(f"{ref}: no such profile ({known})") from None
+            raise ProfileError(
+                str(via.error(("extends",), f"unknown profile {_quoted(ref)} ({known})"))
+            ) from None
+        if via is not None:
+            raise _refuse(via, ref, path, exc.reason) from None
+        raise ProfileError(str(exc)) from None
     except SourceError as exc:
         raise ProfileError(str(exc)) from None
+    data = located.data
+    if is_rig(data):
+        raise _refuse(via, ref, path, "is a rig file, not a profile")
+    if not isinstance(data, dict) and via is None:
+        raise ProfileError(str(located.error((), "a profile must be a mapping")))
+    if not isinstance(data, dict) or ("spec" not in data and "device" not in data):
+        raise _refuse(via, ref, path, NOT_A_PROFILE)
+    return located
 
 
 def _load_chain(
     ref: str, relative_to: FsPath | None, seen: tuple[str, ...], via: Located | None
 ) -> tuple[Located, tuple[str, ...]]:
+    if via is not None and len(seen) >= MAX_CHAIN:
+        raise ProfileError(str(via.error(("extends",), f"extends chain longer than {MAX_CHAIN} profiles")))
+    if "\0" in ref or len(ref) > MAX_REFERENCE:
+        message = "is not a profile name or path"
+        raise ProfileError(str(via.error(("extends",), message)) if via else f"{_quoted(ref)} {message}")
     path = resolve_reference(ref, relative_to)
-    key = str(path.resolve())
+    try:
+        key = str(path.resolve())
+    except (OSError, RuntimeError):  # a symlink loop: reading it will say so
+        key = str(path.absolute())
     if key in seen:
         cycle = " -> ".join([*(FsPath(s).stem for s in seen), path.stem])
         err = (
@@ -133,29 +192,27 @@ def _load_chain(
             else ProfileError(f"extends cycle: {cycle}")
         )
         raise ProfileError(str(err))
-    if not path.is_file():
-        if via is not None:
-            known = ", ".join(bundled_names()) or "none"
-            raise ProfileError(
-                str(via.error(("extends",), f"unknown profile {ref!r} (bundled profiles: {known})"))
-            )
-        raise ProfileError(
-            f"{ref}: no such profile (bundled profiles: {', '.join(bundled_names()) or 'none'})"
-        )
-    located = _read(path)
-    if not isinstance(located.data, dict):
-        raise ProfileError(str(located.error((), "a profile must be a mapping")))
+    located = _read_profile(ref, path, via)
     parent_ref = located.data.get("extends")
     chain = (key,)
     if parent_ref is not None:
-        if not isinstance(parent_ref, str):
-            raise ProfileError(
-                str(located.error(("extends",), f"{parent_ref!r} is not a profile name or path"))
-            )
+        if not isinstance(parent_ref, str) or not parent_ref:
+            raise ProfileError(str(located.error(("extends",), "must be a profile name or path")))
         parent, parent_chain = _load_chain(parent_ref, path.parent, (*seen, key), located)
+        _check_family(located, parent.data.get("device"), parent_ref)
         located = merge(parent, located)
         chain = parent_chain + chain
     return located, chain
+
+
+def _check_family(child: Located, parent_device: Any, parent_ref: str) -> None:
+    """A profile extends one of its own family; the mismatch is the child's (its `device:`)."""
+    device = child.data.get("device")
+    known = registry.families()
+    both = [value for value in (device, parent_device) if isinstance(value, str) and value in known]
+    if len(both) == 2 and device != parent_device:
+        message = f"{device!r} cannot extend {_quoted(parent_ref)}, a profile of the {parent_device} family"
+        raise ProfileError(str(child.error(("device",), f"{message}; extend one of the {device} family")))
 
 
 def load_profile(
@@ -191,7 +248,7 @@ def _check_top(located: Located) -> None:
         raise ProfileError(str(located.error(("spec",), f"is required (spec: {SPEC_VERSION})")))
     if spec != SPEC_VERSION or isinstance(spec, bool):
         raise ProfileError(
-            str(located.error(("spec",), f"{spec!r} is not a supported version (only {SPEC_VERSION})"))
+            str(located.error(("spec",), f"{_quoted(spec)} is not a supported version (only {SPEC_VERSION})"))
         )
     device = data.get("device")
     known = sorted(registry.families())
@@ -199,10 +256,15 @@ def _check_top(located: Located) -> None:
         raise ProfileError(
             str(located.error(("device",), f"is required; one of {', '.join(known) or 'none'}"))
         )
-    if registry.family(device) is None if isinstance(device, str) else True:
+    if not isinstance(device, str) or registry.family(device) is None:
         raise ProfileError(
-            str(located.error(("device",), f"{device!r} is not one of {', '.join(known) or 'none'}"))
+            str(located.error(("device",), f"{_quoted(device)} is not one of {', '.join(known) or 'none'}"))
         )
     description = data.get("description")
     if description is not None and not isinstance(description, str):
         raise ProfileError(str(located.error(("description",), "must be a string")))
+    if description is not None:
+        try:
+            DESCRIPTION.check(description, ("description",))
+        except SchemaError as exc:
+            raise ProfileError(str(located.error(exc.path, exc.message))) from None

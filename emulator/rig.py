@@ -12,6 +12,9 @@ devices:
         link: ~/dev/ttyStage    # optional; default <runtime dir>/<name>
         mode: 0600              # pts permissions (octal)
         timing: realistic       # or fast
+
+A rig file is read like a profile (`emulator.yamlsource.read_source`: regular file, 1 MiB, UTF-8,
+node and depth limits); its `description` is one line like a profile's.
 """
 
 from __future__ import annotations
@@ -21,9 +24,9 @@ from pathlib import Path as FsPath
 from typing import Any
 
 from emulator.line import TIMINGS
-from emulator.profile import Profile, ProfileError, load_profile
+from emulator.profile import DESCRIPTION, Profile, ProfileError, load_profile
 from emulator.schema import Choice, Field, Int, ListOf, Nullable, SchemaError, Str, Struct, Type
-from emulator.yamlsource import load_located
+from emulator.yamlsource import SourceError, read_source
 
 NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}"
 
@@ -66,7 +69,7 @@ RIG = Struct(
     "Rig",
     (
         Field("spec", Int(choices=(1,)), required=True),
-        Field("description", Nullable(Str()), None),
+        Field("description", Nullable(DESCRIPTION), None),
         Field("devices", ListOf(DEVICE, min_length=1), required=True),
     ),
 )
@@ -96,10 +99,9 @@ class Rig:
 
 def load_rig(path: FsPath) -> Rig:
     try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ProfileError(f"{path}: cannot read rig file: {exc.strerror or exc}") from None
-    located = load_located(text, str(path))
+        located = read_source(path)
+    except SourceError as exc:
+        raise ProfileError(str(exc)) from None
     try:
         raw = RIG.check(located.data, ())
     except SchemaError as exc:

@@ -3,18 +3,25 @@
 A device family declares its profile as a `Struct` of fields. Each field knows its type and range,
 its default, the behaviour rule it implements (e.g. `MP-6`) and a one-line meaning, so the validator,
 the frozen dataclasses and `stage-emu describe` all come from the same list.
+
+Numbers are always finite (`.nan` and `.inf` are refused); families give every duration, speed,
+distance and factor a maximum too, so no value can overflow the model. Strings the device itself
+prints are `Text(n, ascii=True)`: printable ASCII of at most n characters. Error messages are one
+line and quote at most `SHOW_LIMIT` characters of a value.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import keyword
+import math
 import re
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 Path = tuple[str | int, ...]
+SHOW_LIMIT = 60
 
 
 class SchemaError(Exception):
@@ -29,6 +36,8 @@ class SchemaError(Exception):
 def path_text(path: Path) -> str:
     text = ""
     for part in path:
+        if isinstance(part, str) and not (part.isprintable() and len(part) <= SHOW_LIMIT):
+            part = _clip(repr(part))  # keep messages on one line
         text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
     return text
 
@@ -38,9 +47,11 @@ def _show(value: Any) -> str:
         return "null"
     if isinstance(value, bool):
         return "true" if value else "false"
-    if isinstance(value, str):
-        return repr(value)
-    return str(value)
+    return _clip(repr(value) if isinstance(value, str) else str(value))
+
+
+def _clip(text: str) -> str:
+    return text if len(text) <= SHOW_LIMIT else text[: SHOW_LIMIT - 1] + "…"
 
 
 @dataclass(frozen=True)
@@ -84,6 +95,8 @@ class Number(Type):
         if isinstance(value, bool) or not isinstance(value, int | float):
             kind = "an integer" if self.integer else "a number"
             raise SchemaError(path, f"{_show(value)} is not {kind}")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise SchemaError(path, f"{_show(value)} is not a finite number")
         if self.integer and not (isinstance(value, int) or float(value).is_integer()):
             raise SchemaError(path, f"{_show(value)} is not an integer")
         if self.integer:
@@ -141,7 +154,19 @@ class Str(Type):
         return value
 
     def describe(self) -> str:
-        return "string" if not self.pattern_text else f"string ({self.pattern_text})"
+        notes = [note for note in (self.pattern_text, self._length()) if note]
+        return f"string ({', '.join(notes)})" if notes else "string"
+
+    def _length(self) -> str:
+        return "" if self.max_length is None else f"at most {self.max_length} characters"
+
+
+def Text(max_length: int, ascii: bool = False) -> Str:
+    """One line of printable text of at most `max_length` characters; `ascii` for strings the
+    device sends on its serial line or shows on its display."""
+    if ascii:
+        return Str(max_length, r"[ -~]*", "printable ASCII")
+    return Str(max_length, r"[^\x00-\x1f\x7f-\x9f\u2028\u2029]*", "one line of printable text")
 
 
 @dataclass(frozen=True)

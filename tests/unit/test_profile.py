@@ -147,6 +147,10 @@ NESTED = Struct(
         ({"axes": [1, 2, "x"]}, ("axes", 2), "'x' is not an integer"),
         ({"table": {"Q": 1}}, ("table", "Q"), "'Q' is not an axis letter"),
         ({"limit": -1}, ("limit",), "-1 is out of range (>= 0)"),
+        ({"ratio": float("nan")}, ("ratio",), "nan is not a finite number"),
+        ({"ratio": float("inf")}, ("ratio",), "inf is not a finite number"),
+        ({"count": float("-inf")}, ("count",), "-inf is not a finite number"),
+        ({"name": "x" * 100}, ("name",), f"'{'x' * 58}… is longer than 4 characters"),
         ([], (), "[] is not a mapping"),
     ],
 )

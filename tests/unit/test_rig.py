@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
+import pytest
+
 import tests.support.probe_device  # noqa: F401  (registers the `probe` family)
-from emulator.profile import bundled_dir
+from emulator.profile import ProfileError, bundled_dir
 from emulator.rig import load_rig, rig_from_profiles
 
 PROBE = str(Path(__file__).parent.parent / "support" / "probe.yaml")
@@ -21,3 +24,28 @@ def test_profile_options_name_devices_after_their_profile(tmp_path: Path) -> Non
 def test_bundled_rig_serves_one_controller_of_each_family() -> None:
     rig = load_rig(bundled_dir() / "rig.yaml")
     assert [(d.name, d.profile.family) for d in rig.devices] == [("mp285", "mp285"), ("ms2000", "ms2000")]
+
+
+def rig_error(path: Path) -> str:
+    with pytest.raises(ProfileError) as info:
+        load_rig(path)
+    return str(info.value)
+
+
+def test_rig_files_go_through_the_profile_reader(tmp_path: Path) -> None:
+    """Rig files get the same limits and one-line messages as profiles (issue #9)."""
+    os.mkfifo(tmp_path / "fifo.yaml")
+    assert (
+        rig_error(tmp_path / "fifo.yaml")
+        == f"{tmp_path / 'fifo.yaml'}: is a FIFO (named pipe), not a regular file"
+    )
+    assert rig_error(tmp_path) == f"{tmp_path}: is a directory, not a file"
+    bomb = tmp_path / "bomb.yaml"
+    bomb.write_text("a: &a [" + ", ".join(["x"] * 400) + "]\nb: [" + ", ".join(["*a"] * 400) + "]\n")
+    assert "bomb.yaml:1: more than 100000 YAML nodes (aliases expanded)" in rig_error(bomb)
+
+
+def test_rig_description_is_one_line(tmp_path: Path) -> None:
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(f'spec: 1\ndescription: "a\\nb"\ndevices: [{{name: a, profile: {PROBE}}}]\n')
+    assert rig_error(rig) == f"{rig}:2: description: 'a\\nb' is not one line of printable text"

@@ -1,4 +1,11 @@
-"""MP-285 profile schema: line, controller, stage and behaviour knobs (docs/mp285.md, App. A)."""
+"""MP-285 profile schema: line, controller, stage and behaviour knobs (docs/mp285.md, App. A).
+
+Every number has a finite range, so e.g. `settle_s: 1e300` is refused at load: durations at most
+`MAX_SECONDS` (an hour), `accel_um_s2` at most `MAX_ACCEL_UM_S2` (10 m/s², far beyond the stepper
+drive), `z_usteps_per_um` at most `MAX_Z_USTEPS_PER_UM` (travel then still fits 32 bits), positions
+in µsteps within 32 bits (the origin through the MP-30 check), `input_buffer_size` at most
+`MAX_BUFFER_BYTES` and `coarse_step_quantum_usteps` at most `MAX_QUANTUM_USTEPS` (40 mm).
+"""
 
 from __future__ import annotations
 
@@ -32,6 +39,11 @@ TRAVEL_UM = 25_000  # MP-285 axes and any Z
 MT800_XY_TRAVEL_UM = 22_000
 MAX_SPEED_LOW = {"mp285": 6550, "mp285a": 3000}
 SIGNATURE_BYTES = {"nul": b"\x00", "zero_char": b"0", "silent": b""}
+MAX_SECONDS = 3600.0
+MAX_ACCEL_UM_S2 = 1e7
+MAX_Z_USTEPS_PER_UM = 1000.0
+MAX_BUFFER_BYTES = 65536
+MAX_QUANTUM_USTEPS = 1_000_000
 
 
 def _template_word(offset: int) -> Derived:
@@ -127,9 +139,10 @@ CONTROLLER = Struct(
         Field(
             "step_fields_format",
             Choice(("mp285", "mp285a")),
-            Derived(lambda v: v["model"], "the model's own"),
+            "mp285",
             "MP-63",
-            "STEP_DIV/STEP_MUL as µsteps per µm and µm per µstep × 100 (mp285), or nm per 10 µsteps",
+            "STEP_DIV/STEP_MUL as units report them: µsteps per µm and µm per µstep × 100 (mp285), "
+            "or the quick reference's nm per 10 µsteps (mp285a)",
         ),
         Field(
             "power_on_velocity_word",
@@ -161,7 +174,7 @@ STAGE = Struct(
         ),
         Field(
             "z_usteps_per_um",
-            Float(minimum=0, exclusive_minimum=True),
+            Float(0, MAX_Z_USTEPS_PER_UM, exclusive_minimum=True),
             25,
             "MP-28",
             "µsteps per µm of the Z axis (a focus drive may differ)",
@@ -178,7 +191,7 @@ STAGE = Struct(
         ),
         Field(
             "origin_usteps_from_bot",
-            ListOf(Int(), length=3),
+            ListOf(Int(), length=3),  # bounded by _check_stage: positions must fit 32 bits
             Derived(
                 lambda v: [length // 2 if v["origin"] == "cot" else 0 for length in v["travel_usteps"]],
                 "from origin and travel",
@@ -188,7 +201,7 @@ STAGE = Struct(
         ),
         Field(
             "power_on_physical_usteps",
-            ListOf(Int(0), length=3),
+            ListOf(Int(0, proto.INT32_MAX), length=3),
             Derived(lambda v: [length // 2 for length in v["travel_usteps"]], "half the travel"),
             "MP-30",
             "physical position of X, Y, Z at power-on, in µsteps from the beginning of travel",
@@ -206,7 +219,7 @@ def _check_knobs(values: Mapping[str, Any], path: tuple) -> None:
         )
 
 
-SECONDS = Float(minimum=0)
+SECONDS = Float(0, MAX_SECONDS)
 
 KNOBS = Struct(
     "Mp285Knobs",
@@ -226,7 +239,13 @@ KNOBS = Struct(
             "MP-20",
             "a lone CR or LF in command position is answered with CR, or ignored",
         ),
-        Field("input_buffer_size", Int(1), 64, "MP-23", "bad-frame bytes without CR before error '2'"),
+        Field(
+            "input_buffer_size",
+            Int(1, MAX_BUFFER_BYTES),
+            64,
+            "MP-23",
+            "bad-frame bytes without CR before error '2'",
+        ),
         Field(
             "out_of_range",
             Choice(("clamp", "error4")),
@@ -243,7 +262,7 @@ KNOBS = Struct(
         ),
         Field(
             "coarse_step_quantum_usteps",
-            Int(1),
+            Int(1, MAX_QUANTUM_USTEPS),
             1,
             "MP-42",
             "at low resolution, displacements round to a multiple of this",
@@ -256,7 +275,13 @@ KNOBS = Struct(
             "axes move together, or X then Y then Z",
         ),
         Field("settle_s", SECONDS, 0.15, "MP-44", "time at the target before the move's final CR"),
-        Field("accel_um_s2", Float(minimum=0), 0, "MP-45", "acceleration along the longest axis; 0 = none"),
+        Field(
+            "accel_um_s2",
+            Float(0, MAX_ACCEL_UM_S2),
+            0,
+            "MP-45",
+            "acceleration along the longest axis; 0 = none",
+        ),
         Field(
             "terminators_interrupt_move",
             Bool(),
@@ -347,7 +372,7 @@ KNOBS = Struct(
         ),
         Field(
             "lockup_incomplete_frame_s",
-            Nullable(Float(minimum=0, exclusive_minimum=True)),
+            Nullable(Float(0, MAX_SECONDS, exclusive_minimum=True)),
             None,
             "MP-80",
             "a frame left incomplete this long locks the unit until power cycle; null = never",

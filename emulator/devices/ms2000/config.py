@@ -3,6 +3,16 @@
 Every field names the rule it implements and says what it means (`stage-emu describe`). Module
 plug-ins add their own fields (top level and `knobs`), so a new module or a new build is one module
 file plus a small profile YAML that `extends: ms2000`.
+
+Every number has a finite range, far beyond any ASI stage yet small enough that encoder counts stay
+exact in floating point: pitch up to `MAX_PITCH_MM`, encoder resolution up to `MAX_COUNTS_PER_MM`
+(1 nm), speeds up to `MAX_SPEED_MM_S`, distances and positions within ±`MAX_DISTANCE_MM` (10 m),
+`unit_multiplier` within ±`MAX_UNIT_MULTIPLIER`, times up to `MAX_MS` (an hour).
+
+Identity strings the firmware prints are printable ASCII of bounded length: `version` at most
+`LCD_WIDTH` (20, the LCD line that shows it with DIP switch 2 down, MS-116, MS-99), `cdate` 20
+(its `Mmm dd yyyy:hh:mm:ss` format, MS-100), the other lines (BU, BU X, WHO: MS-101, MS-102,
+MS-105) at most `IDENTITY_LENGTH` (32; the longest known, WHO, is 22) and `device_id` at most 64.
 """
 
 from __future__ import annotations
@@ -24,6 +34,7 @@ from emulator.schema import (
     SchemaError,
     Str,
     Struct,
+    Text,
 )
 from emulator.schema import Path as SchemaPath
 from protocols.ms2000 import BY_KEY, SHAPE_NAMES
@@ -33,10 +44,22 @@ BAUDS = {("up", "up"): 9600, ("down", "down"): 115200, ("down", "up"): 19200, ("
 #: MS-54: 7.68 mm/s maximum for a 6.35 mm lead screw, scaling with the pitch
 MAX_SPEED_PER_MM_PITCH = 7.68 / 6.35
 DEFAULT_SPEED_SHARE = 0.67
+MAX_PITCH_MM = 100.0
+MAX_COUNTS_PER_MM = 1e6
+MAX_SPEED_MM_S = 1000.0
+MAX_DISTANCE_MM = 10_000.0
+MAX_UNIT_MULTIPLIER = 1e6
+MAX_MS = 3_600_000.0
+MAX_WHEEL_UM = 1000.0
+LCD_WIDTH = 20
+IDENTITY_LENGTH = 32
 INPUT_DEVICES = {0: "NONE", 2: "JS_X", 3: "JS_Y", 22: "WHEEL"}
 
 _LETTER = Str(pattern=r"[A-Z]", pattern_text="one upper-case letter")
 _UPDOWN = Choice(("up", "down"))
+_DISTANCE = Float(-MAX_DISTANCE_MM, MAX_DISTANCE_MM)
+_POSITIVE_DISTANCE = Float(0, MAX_DISTANCE_MM, exclusive_minimum=True)
+_SPEED = Float(0, MAX_SPEED_MM_S, exclusive_minimum=True)
 
 
 def baud_of(sw4: str, sw5: str) -> int:
@@ -51,22 +74,30 @@ AXIS = Struct(
     "Ms2000Axis",
     (
         Field(
-            "pitch_mm", Float(0, exclusive_minimum=True), 6.35, "MS-54", "lead-screw pitch (sets max speed)"
+            "pitch_mm",
+            Float(0, MAX_PITCH_MM, exclusive_minimum=True),
+            6.35,
+            "MS-54",
+            "lead-screw pitch (sets max speed)",
         ),
         Field("encoder", Choice(("rotary", "linear")), "rotary", "MS-SI-3", "encoder kind"),
         Field(
-            "counts_per_mm", Float(0, exclusive_minimum=True), 45396.0, "MS-45", "encoder counts per mm (C)"
+            "counts_per_mm",
+            Float(0, MAX_COUNTS_PER_MM, exclusive_minimum=True),
+            45396.0,
+            "MS-45",
+            "encoder counts per mm (C)",
         ),
         Field(
             "max_speed_mm_s",
-            Float(0, exclusive_minimum=True),
+            _SPEED,
             Derived(_max_speed, "7.68 × pitch_mm / 6.35"),
             "MS-54",
             "highest settable speed S (mm/s)",
         ),
         Field(
             "speed_mm_s",
-            Float(0, exclusive_minimum=True),
+            _SPEED,
             Derived(lambda v: round(DEFAULT_SPEED_SHARE * v["max_speed_mm_s"], 6), "67 % of max_speed_mm_s"),
             "MS-54",
             "factory speed S (mm/s)",
@@ -75,40 +106,46 @@ AXIS = Struct(
         Field("wait_ms", Int(0, 65535), 0, "MS-56", "factory wait time WT after landing (ms)"),
         Field(
             "backlash_mm",
-            Float(0),
+            Float(0, MAX_DISTANCE_MM),
             Derived(lambda v: round(0.04 * v["pitch_mm"] / 6.35, 6), "0.04 × pitch_mm / 6.35"),
             "MS-57",
             "factory anti-backlash distance B (mm)",
         ),
-        Field("overshoot_mm", Float(0), 0.0, "MS-58", "factory overshoot OS (mm)"),
-        Field(
-            "drift_error_mm", Float(0, exclusive_minimum=True), 0.0004, "MS-59", "factory drift error E (mm)"
-        ),
+        Field("overshoot_mm", Float(0, MAX_DISTANCE_MM), 0.0, "MS-58", "factory overshoot OS (mm)"),
+        Field("drift_error_mm", _POSITIVE_DISTANCE, 0.0004, "MS-59", "factory drift error E (mm)"),
         Field(
             "finish_error_mm",
-            Float(0, exclusive_minimum=True),
+            _POSITIVE_DISTANCE,
             Derived(lambda v: round(1 / v["counts_per_mm"], 6) or 0.000001, "one count, 6 decimals"),
             "MS-60",
             "factory finish error PC (mm)",
         ),
         Field("maintain", Choice((0, 1, 2, 3, 5)), 0, "MS-61", "factory post-move behaviour MA"),
-        Field(
-            "runaway_mm", Float(0, exclusive_minimum=True), 1.5, "MS-62", "factory servo-error limit RU (mm)"
-        ),
+        Field("runaway_mm", _POSITIVE_DISTANCE, 1.5, "MS-62", "factory servo-error limit RU (mm)"),
         Field("kp", Int(-32768, 32767), 100, "MS-97", "factory KP"),
         Field("ki", Int(-32768, 32767), 20, "MS-97", "factory KI"),
         Field("kd", Int(-32768, 32767), 0, "MS-97", "factory KD"),
         Field("kv", Int(-32768, 32767), 26, "MS-97", "factory KV"),
         Field("ka", Int(-32768, 32767), 0, "MS-97", "factory KA"),
         Field("aa", Int(0, 99), 83, "MS-97", "factory AA (motor-drive alignment)"),
-        Field("dac_mm_s", Float(0, exclusive_minimum=True), 0.055, "MS-71", "factory D: mm/s per DAC count"),
-        Field("unit_multiplier", Float(), 10000.0, "MS-44", "factory UM: units per mm"),
+        Field("dac_mm_s", _SPEED, 0.055, "MS-71", "factory D: mm/s per DAC count"),
         Field(
-            "soft_lower_mm", Float(), -110.0, "MS-65", "factory lower soft limit SL (mm from fresh origin)"
+            "unit_multiplier",
+            Float(-MAX_UNIT_MULTIPLIER, MAX_UNIT_MULTIPLIER),
+            10000.0,
+            "MS-44",
+            "factory UM: units per mm",
         ),
-        Field("soft_upper_mm", Float(), 110.0, "MS-65", "factory upper soft limit SU (mm from fresh origin)"),
-        Field("home_mm", Float(), 1000.0, "MS-68", "factory home position HM (mm from fresh origin)"),
-        Field("travel_mm", ListOf(Float(), length=2), (-60.0, 60.0), "MS-50", "hardware limit switches (mm)"),
+        Field(
+            "soft_lower_mm", _DISTANCE, -110.0, "MS-65", "factory lower soft limit SL (mm from fresh origin)"
+        ),
+        Field(
+            "soft_upper_mm", _DISTANCE, 110.0, "MS-65", "factory upper soft limit SU (mm from fresh origin)"
+        ),
+        Field("home_mm", _DISTANCE, 1000.0, "MS-68", "factory home position HM (mm from fresh origin)"),
+        Field(
+            "travel_mm", ListOf(_DISTANCE, length=2), (-60.0, 60.0), "MS-50", "hardware limit switches (mm)"
+        ),
         Field(
             "input_device",
             Choice(tuple(INPUT_DEVICES)),
@@ -179,7 +216,9 @@ BASE_KNOBS = (
         "MS-34",
         "gate features by the version string (only false: every feature of a present module works)",
     ),
-    Field("landing_ms", Float(0), 0, "MS-53", "settling time after landing, before the wait time (ms)"),
+    Field(
+        "landing_ms", Float(0, MAX_MS), 0, "MS-53", "settling time after landing, before the wait time (ms)"
+    ),
     Field("status_bit5_up_is_one", Bool(), True, "MS-80", "status bit 5 reads 1 while ramping up"),
     Field("rb_space_after_ack", Bool(), False, "MS-82", "RDSBYTE replies `:A ` before the raw bytes"),
     Field("error_log_clock_marks", Bool(), True, "MS-41", "log code 255 every 10 minutes of uptime"),
@@ -251,16 +290,28 @@ def build_schema() -> Struct:
     return Struct(
         "Ms2000",
         (
-            Field("device_id", Str(), "ms2000-0001", "MS-111", "identity of the non-volatile memory"),
-            Field("build_name", Str(), "STD_XYZ", "MS-101", "BUILD name"),
             Field(
-                "version", Str(), "USB-9.2k", "MS-99", "VERSION text (keep a 4-character prefix like USB-)"
+                "device_id",
+                Text(64, ascii=True),
+                "ms2000-0001",
+                "MS-111",
+                "identity of the non-volatile memory",
             ),
-            Field("cdate", Str(), "Mar 14 2016:17:32:08", "MS-100", "CDATE compile date"),
-            Field("who", Str(), "ASI-MS2000-XYBR-Zs-USB", "MS-105", "WHO text"),
-            Field("bootldr", Str(), "BootLdr V:1", "MS-102", "BU X boot-loader line"),
-            Field("hdwr", Str(), "Hdwr REV.E", "MS-102", "BU X hardware line"),
-            Field("cmd_letters", Str(), "XYZFTR", "MS-42", "BU X `CMDs:` line"),
+            Field("build_name", Text(IDENTITY_LENGTH, ascii=True), "STD_XYZ", "MS-101", "BUILD name"),
+            Field(
+                "version",
+                Text(LCD_WIDTH, ascii=True),
+                "USB-9.2k",
+                "MS-99",
+                "VERSION text (keep a 4-character prefix like USB-)",
+            ),
+            Field("cdate", Text(20, ascii=True), "Mar 14 2016:17:32:08", "MS-100", "CDATE compile date"),
+            Field("who", Text(IDENTITY_LENGTH, ascii=True), "ASI-MS2000-XYBR-Zs-USB", "MS-105", "WHO text"),
+            Field(
+                "bootldr", Text(IDENTITY_LENGTH, ascii=True), "BootLdr V:1", "MS-102", "BU X boot-loader line"
+            ),
+            Field("hdwr", Text(IDENTITY_LENGTH, ascii=True), "Hdwr REV.E", "MS-102", "BU X hardware line"),
+            Field("cmd_letters", Text(IDENTITY_LENGTH, ascii=True), "XYZFTR", "MS-42", "BU X `CMDs:` line"),
             Field(
                 "motor_axes",
                 ListOf(_LETTER, min_length=1, max_length=4, unique=True),
@@ -281,7 +332,11 @@ def build_schema() -> Struct:
             Field("dip_switches", DIPS, None, "MS-2", "DIP switch positions at power-up"),
             Field("servo_ms", Int(1, 100), 6, "MS-106", "servo loop period (ms)"),
             Field(
-                "wheel_um_per_count", Float(0, exclusive_minimum=True), 0.5, "MS-84", "focus wheel step (µm)"
+                "wheel_um_per_count",
+                Float(0, MAX_WHEEL_UM, exclusive_minimum=True),
+                0.5,
+                "MS-84",
+                "focus wheel step (µm)",
             ),
             *module_fields,
             Field(

@@ -58,12 +58,17 @@ def test_tv_01_status_reply_is_paced(open_target: OpenTarget) -> None:
 
 @pytest.mark.parametrize(
     ("profile", "expected"),
-    [("mp285a-v302", DUMP_B), ("mp285a", DUMP_B[:24] + hx("90 01 90 01") + DUMP_B[28:])],
-    ids=["mp285a-v302", "mp285a"],
+    [
+        ("mp285a-v302", DUMP_B),
+        ("mp285a", DUMP_B),
+        ("mp285a-qr", DUMP_B[:24] + hx("90 01 90 01") + DUMP_B[28:]),
+    ],
+    ids=["mp285a-v302", "mp285a", "mp285a-qr"],
 )
 def test_tv_02_status_dump_b(open_target: OpenTarget, profile: str, expected: bytes) -> None:
-    """TV-2 (MP-65, MP-63, MP-2): an MP-285A host with RTS/CTS; `mp285a-v302` gives the real dump B
-    byte for byte, `mp285a` differs only in STEP_DIV/STEP_MUL (400/400, nm per 10 µsteps)."""
+    """TV-2 (MP-65, MP-63, MP-2): an MP-285A host with RTS/CTS; `mp285a-v302` and `mp285a` give the
+    real dump B byte for byte (STEP fields 25/4, as units report), `mp285a-qr` differs only in
+    STEP_DIV/STEP_MUL (the quick reference's 400/400, nm per 10 µsteps, §0.1)."""
     host = connect(open_target, profile)
     assert host.port.rtscts
     host.send(GET_STATUS)

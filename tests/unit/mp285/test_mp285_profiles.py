@@ -9,7 +9,7 @@ import pytest
 from emulator.profile import ProfileError, load_profile
 from emulator.registry import family
 
-BUNDLED = ("mp285", "mp285-mt800", "mp285a", "mp285a-v302", "mp285a-rs232")
+BUNDLED = ("mp285", "mp285-mt800", "mp285a", "mp285a-v302", "mp285a-qr", "mp285a-rs232")
 
 
 @pytest.mark.parametrize("name", BUNDLED)
@@ -89,13 +89,14 @@ def test_every_appendix_a_knob_is_a_profile_key() -> None:
     ("name", "expected"),
     [
         ("mp285", {"word": 0x00C8, "low": 6550, "rtscts": False, "format": "mp285", "version": 340}),
-        ("mp285a", {"word": 0x05DC, "low": 3000, "rtscts": True, "format": "mp285a", "version": 302}),
+        ("mp285a", {"word": 0x05DC, "low": 3000, "rtscts": True, "format": "mp285", "version": 302}),
         ("mp285a-v302", {"word": 0x05DC, "low": 3000, "rtscts": True, "format": "mp285", "version": 302}),
-        ("mp285a-rs232", {"word": 0x05DC, "low": 3000, "rtscts": False, "format": "mp285a", "version": 302}),
+        ("mp285a-qr", {"word": 0x05DC, "low": 3000, "rtscts": True, "format": "mp285a", "version": 302}),
+        ("mp285a-rs232", {"word": 0x05DC, "low": 3000, "rtscts": False, "format": "mp285", "version": 302}),
     ],
 )
 def test_per_model_defaults(name: str, expected: dict) -> None:
-    """§0.1, MP-38, MP-61, MP-63, MP-7."""
+    """§0.1, MP-38, MP-61, MP-63 (every bundled profile but mp285a-qr reports 25/4), MP-7."""
     controller = load_profile(name).config.controller
     got = {
         "word": controller.power_on_velocity_word,
@@ -168,6 +169,14 @@ def error_of(name: str, overrides: dict) -> str:
             "knobs.roe_crash_window_s: [1.0, 0.5) is empty",
         ),
         ("mp285", {"knobs": {"settle": 1}}, "knobs.settle: unknown key"),
+        ("mp285", {"knobs": {"settle_s": 1e300}}, "knobs.settle_s: 1e+300 is out of range (>= 0, <= 3600)"),
+        ("mp285", {"knobs": {"settle_s": float("nan")}}, "knobs.settle_s: nan is not a finite number"),
+        ("mp285", {"knobs": {"power_on_s": float("inf")}}, "knobs.power_on_s: inf is not a finite number"),
+        ("mp285", {"knobs": {"accel_um_s2": 1e8}}, "knobs.accel_um_s2: 100000000.0 is out of range"),
+        ("mp285", {"knobs": {"roe_crash_window_s": [0, 1e9]}}, "knobs.roe_crash_window_s[1]: 1000000000.0"),
+        ("mp285", {"knobs": {"lockup_incomplete_frame_s": 4000}}, "(> 0, <= 3600)"),
+        ("mp285", {"stage": {"z_usteps_per_um": 1e300}}, "stage.z_usteps_per_um: 1e+300 is out of range"),
+        ("mp285", {"knobs": {"input_buffer_size": 10**6}}, "knobs.input_buffer_size: 1000000 is out of"),
     ],
 )
 def test_load_time_checks(name: str, overrides: dict, message: str) -> None:
@@ -181,3 +190,18 @@ def test_profile_file_extending_a_bundled_one(tmp_path: Path) -> None:
     profile = load_profile(str(path))
     assert profile.config.knobs.settle_s == 0.05
     assert profile.config.controller.firmware_version == 340
+
+
+def test_step_fields_default_is_what_units_report() -> None:
+    """MP-63: the default format is `mp285` whatever the model; only `mp285a-qr` asks for 400/400."""
+    controller = load_profile("mp285", {"controller": {"model": "mp285a"}}).config.controller
+    assert controller.step_fields_format == "mp285"
+
+
+def test_describe_shows_the_finite_ranges() -> None:
+    """Every duration, speed and factor shows its range in `stage-emu describe`."""
+    types = {row.path: row.type for row in load_profile("mp285").describe()}
+    assert types["knobs.settle_s"] == "number >= 0, <= 3600"
+    assert types["knobs.accel_um_s2"] == "number >= 0, <= 1e+07"
+    assert types["stage.z_usteps_per_um"] == "number > 0, <= 1000"
+    assert types["knobs.lockup_incomplete_frame_s"] == "number > 0, <= 3600 or null"

@@ -62,12 +62,14 @@ def test_tv1_status_dump_a_and_line_pacing() -> None:
 
 
 def test_tv2_status_dump_b() -> None:
-    """TV-2 (MP-65, MP-63, MP-2): mp285a-v302 byte-exact; mp285a differs in STEP_DIV/STEP_MUL."""
+    """TV-2 (MP-65, MP-63, MP-2): mp285a-v302 and mp285a byte-exact (25/4, as units report);
+    mp285a-qr differs in STEP_DIV/STEP_MUL (the quick reference's 400/400)."""
     bench = Bench("mp285a-v302")
     assert bench.host is not None and bench.host.rtscts
     assert hexs(status_of(bench)) == DUMP_B
-    generic = hexs(status_of(Bench("mp285a")))
-    assert generic == DUMP_B.replace("19 00 04 00 DC", "90 01 90 01 DC")
+    assert hexs(status_of(Bench("mp285a"))) == DUMP_B
+    quick_reference = hexs(status_of(Bench("mp285a-qr")))
+    assert quick_reference == DUMP_B.replace("19 00 04 00 DC", "90 01 90 01 DC")
 
 
 # ---- TV-3 ... TV-5: line mismatches --------------------------------------------------------------------
