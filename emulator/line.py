@@ -43,11 +43,13 @@ def settings_char_time(settings: LineSettings, fallback: LineSettings) -> float:
 
 @dataclass
 class _Run:
-    """Bytes sent back to back: byte k is complete at `first_end + k * per_char`."""
+    """Bytes sent back to back: byte `start + k` is complete at `first_end + k * per_char`."""
 
     first_end: float
     per_char: float
     data: bytes
+    #: bytes before this index are taken (an index, not a re-slice: a paced run loses one byte per step)
+    start: int = 0
 
 
 class Pacer:
@@ -56,12 +58,14 @@ class Pacer:
     `push(t, data)` queues bytes that become ready to send at device time `t`; they go out after
     whatever is already on the wire. `take_due(now)` pops the (completion time, bytes) runs whose
     characters are complete by `now`. A per-character time of 0 delivers at once (`timing: fast`).
+    `len()` is the number of bytes queued and not yet taken (the backlog the runner bounds).
     """
 
     def __init__(self, per_char: float = 0.0) -> None:
         self.per_char = per_char
         self._runs: deque[_Run] = deque()
         self._wire_free = float("-inf")
+        self._size = 0
 
     def push(self, t: float, data: bytes) -> None:
         if not data:
@@ -70,6 +74,7 @@ class Pacer:
         run = _Run(start + self.per_char, self.per_char, bytes(data))
         self._wire_free = start + self.per_char * len(data)
         self._runs.append(run)
+        self._size += len(data)
 
     @property
     def wire_free(self) -> float:
@@ -86,15 +91,18 @@ class Pacer:
             run = self._runs[0]
             if run.first_end > now + _EPSILON:
                 break
+            left = len(run.data) - run.start
             if run.per_char <= 0:
-                count = len(run.data)
+                count = left
             else:
-                count = min(len(run.data), int((now + _EPSILON - run.first_end) / run.per_char) + 1)
-            taken.append((run.first_end + (count - 1) * run.per_char, run.data[:count]))
-            if count == len(run.data):
+                count = min(left, int((now + _EPSILON - run.first_end) / run.per_char) + 1)
+            end = run.start + count
+            taken.append((run.first_end + (count - 1) * run.per_char, run.data[run.start : end]))
+            self._size -= count
+            if count == left:
                 self._runs.popleft()
             else:
-                run.data = run.data[count:]
+                run.start += count
                 run.first_end += count * run.per_char
         return taken
 
@@ -109,9 +117,10 @@ class Pacer:
     def clear(self) -> None:
         self._runs.clear()
         self._wire_free = float("-inf")
+        self._size = 0
 
     def __len__(self) -> int:
-        return sum(len(run.data) for run in self._runs)
+        return self._size
 
 
 def mismatches(device: LineSettings, host: LineSettings) -> list[str]:

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -24,6 +25,33 @@ log = logging.getLogger("stage_emu.runner")
 
 #: the value each corrupted byte is XORed with (`corrupt` fault)
 CORRUPT_MASK = 0xFF
+
+#: Host input a port has taken but the device has not yet received (its wire time has not ended),
+#: per port, in bytes. At this backlog the port stops reading, so a host writing faster than its
+#: baud rate blocks as on a real serial port. It is a real serial driver's transmit buffer (one
+#: page), so a host's single write of any frame or command batch is taken whole at once: the largest
+#: is an MP-285 program download of 99 vectors, 1588 bytes. 4 KiB is 4.3 s of wire at 9600 8N1.
+INPUT_BACKLOG = 4096
+#: Device output not yet through its wire time, per port, in bytes: at this backlog the port stops
+#: reading too (the device is busy sending), so a host sending commands faster than their replies
+#: can go out does not queue replies without limit.
+OUTPUT_BACKLOG = 4096
+
+#: Fault parameters: the ones each fault takes, and the range of each (a day, a million replies or
+#: bytes, a minute). JSON lets NaN, Infinity and 1e300 through; these ranges keep them out.
+FAULT_PARAMS: dict[str, tuple[str, ...]] = {
+    "disconnect": ("seconds",),
+    "hang": ("seconds",),
+    "drop": ("count",),
+    "corrupt": ("count",),
+    "latency": ("ms",),
+    "clear": (),
+}
+PARAM_RANGES: dict[str, tuple[int, int]] = {
+    "seconds": (0, 86400),
+    "count": (1, 1_000_000),
+    "ms": (0, 60000),
+}
 
 
 @dataclass
@@ -47,6 +75,22 @@ class Faults:
 
 
 @dataclass
+class PortStats:
+    """What one port lost because its host did not keep up (counted since the daemon started)."""
+
+    #: device output the host's full receive buffer could not take (an overrun)
+    output_dropped: int = 0
+    #: host input discarded before the device received it: left in the port, or still on the
+    #: emulated wire, when the host hung up
+    input_discarded: int = 0
+    #: output is being dropped now (the warning is logged once, when this starts)
+    dropping: bool = False
+
+    def describe(self) -> dict[str, Any]:
+        return {"output_dropped": self.output_dropped, "input_discarded": self.input_discarded}
+
+
+@dataclass
 class Channel:
     """One port of the device: its transport, host state, pacing in both directions and faults."""
 
@@ -58,6 +102,7 @@ class Channel:
     to_host: Pacer = field(default_factory=Pacer)
     from_host: Pacer = field(default_factory=Pacer)
     faults: Faults = field(default_factory=Faults)
+    stats: PortStats = field(default_factory=PortStats)
     reported_mismatch: tuple[Any, ...] = ()
 
 
@@ -79,6 +124,12 @@ class _ChannelSink:
 
     def host_data(self, data: bytes) -> None:
         self._runner.host_data(self._channel, data)
+
+    def room(self) -> int:
+        return self._runner.input_room(self._channel)
+
+    def input_discarded(self, count: int) -> None:
+        self._channel.stats.input_discarded += count
 
 
 class DeviceRunner:
@@ -138,10 +189,14 @@ class DeviceRunner:
 
     def host_detached(self, ch: Channel) -> None:
         ch.attached = False
+        unheard = len(ch.from_host)
+        ch.stats.input_discarded += unheard
+        ch.stats.dropping = False
         ch.to_host.clear()
         ch.from_host.clear()
         ch.reported_mismatch = ()
-        log.info("%s/%s: host detached", self.name, ch.name)
+        lost = f"; {unheard} bytes still on the wire discarded" if unheard else ""
+        log.info("%s/%s: host detached%s", self.name, ch.name, lost)
         self._set_host(ch, None)
 
     def host_line(self, ch: Channel, host: LineSettings) -> None:
@@ -158,10 +213,14 @@ class DeviceRunner:
         now = self.clock.now()
         if self._traffic is not None:
             self._traffic.record(now, self.name, ch.name, "rx", data, self.device.summarize("rx", data))
-        if ch.faults.hung:
-            return
-        ch.from_host.push(now, data)
+        ch.from_host.push(now, data)  # even when hung: the bytes still take their time on the wire
         self.pump()
+
+    def input_room(self, ch: Channel) -> int:
+        """Host bytes `ch` may take now (PortSink.room): 0 while either direction is backed up."""
+        if len(ch.to_host) >= OUTPUT_BACKLOG:
+            return 0
+        return max(INPUT_BACKLOG - len(ch.from_host), 0)
 
     # ---- the step -----------------------------------------------------------------------------
 
@@ -187,6 +246,7 @@ class DeviceRunner:
         self._collect_output()
         self._write_due(now)
         self._check_mismatch()
+        self._resume_reading()
         self._arm_timer()
         return now
 
@@ -196,9 +256,11 @@ class DeviceRunner:
         due: list[tuple[float, str, bytes]] = []
         for ch in self.channels.values():
             if ch.from_host.per_char > 0:
-                due.extend((t, ch.name, bytes([b])) for t, b in ch.from_host.take_each_due(now))
+                arrived = [(t, ch.name, bytes([b])) for t, b in ch.from_host.take_each_due(now)]
             else:
-                due.extend((t, ch.name, data) for t, data in ch.from_host.take_due(now))
+                arrived = [(t, ch.name, data) for t, data in ch.from_host.take_due(now)]
+            if not ch.faults.hung:  # a hung device hears nothing that arrives
+                due.extend(arrived)
         due.sort(key=lambda item: item[0])
         return due
 
@@ -238,9 +300,37 @@ class DeviceRunner:
             for t, data in ch.to_host.take_due(now):
                 if ch.transport is None or not ch.attached:
                     continue
-                ch.transport.write(data)
+                dropped = ch.transport.write(data)
+                if dropped:
+                    self._output_dropped(ch, dropped)
+                elif ch.stats.dropping:
+                    ch.stats.dropping = False
+                    log.info("%s/%s: host takes output again", self.name, ch.name)
                 if self._traffic is not None:
                     self._traffic.record(t, self.name, ch.name, "tx", data, self.device.summarize("tx", data))
+
+    def _output_dropped(self, ch: Channel, count: int) -> None:
+        ch.stats.output_dropped += count
+        if not ch.stats.dropping:
+            ch.stats.dropping = True
+            log.warning(
+                "%s/%s: host is not reading; output that does not fit its buffer is dropped "
+                "(%d bytes dropped on this port so far)",
+                self.name,
+                ch.name,
+                ch.stats.output_dropped,
+            )
+
+    def _resume_reading(self) -> None:
+        """Let ports read again once their backlogs are down to half (not at every byte: a port
+        then reads in batches, not one syscall per character)."""
+        for ch in self.channels.values():
+            if (
+                ch.transport is not None
+                and len(ch.from_host) <= INPUT_BACKLOG // 2
+                and len(ch.to_host) <= OUTPUT_BACKLOG // 2
+            ):
+                ch.transport.resume_reading()
 
     def _check_mismatch(self) -> None:
         for ch in self.channels.values():
@@ -313,7 +403,8 @@ class DeviceRunner:
             raise ValueError(
                 f"{self.name}: no port {channel!r} (this device has: {', '.join(self.channels)})"
             )
-        seconds = _number(params, "seconds", None, minimum=0)
+        values = _fault_params(fault, params)
+        seconds = values.get("seconds")
         if fault == "disconnect":
             self._disconnect(ch, seconds)
         elif fault == "hang":
@@ -322,19 +413,17 @@ class DeviceRunner:
             if seconds is not None:
                 self.after(seconds, lambda: setattr(ch.faults, "hung", False))
         elif fault == "drop":
-            ch.faults.drop_replies += int(_number(params, "count", 1, minimum=1))
+            ch.faults.drop_replies += int(values.get("count", 1))
         elif fault == "corrupt":
-            ch.faults.corrupt_bytes += int(_number(params, "count", 1, minimum=1))
+            ch.faults.corrupt_bytes += int(values.get("count", 1))
         elif fault == "latency":
-            ch.faults.latency_s = _number(params, "ms", 0, minimum=0) / 1000
-        elif fault == "clear":
+            if "ms" not in values:
+                raise ValueError("latency needs ms=M, the delay added to every reply (0 to 60000 ms)")
+            ch.faults.latency_s = values["ms"] / 1000
+        else:  # clear
             if ch.faults.vanished and ch.transport is not None:
                 ch.transport.reappear()
             ch.faults = Faults()
-        else:
-            raise ValueError(
-                f"unknown fault {fault!r}; one of: disconnect, hang, drop, corrupt, latency, clear"
-            )
         self.pump()
         return ch.faults.describe()
 
@@ -367,13 +456,25 @@ class DeviceRunner:
             action()
 
 
-def _number(params: dict[str, Any], name: str, default: float | None, minimum: float) -> Any:
-    value = params.get(name, default)
-    if value is None:
-        return None
-    if isinstance(value, bool) or not isinstance(value, int | float) or value < minimum:
-        raise ValueError(f"{name} must be a number >= {minimum:g}, got {value!r}")
-    return value
+def _fault_params(fault: str, params: dict[str, Any]) -> dict[str, float]:
+    """The fault's parameters, checked: known names only, each a finite number in its range."""
+    if fault not in FAULT_PARAMS:
+        raise ValueError(f"unknown fault {fault!r}; one of: {', '.join(FAULT_PARAMS)}")
+    allowed = FAULT_PARAMS[fault]
+    unknown = sorted(set(params) - set(allowed))
+    if unknown:
+        takes = f"takes only {', '.join(allowed)}" if allowed else "takes no parameters"
+        raise ValueError(f"{fault} {takes}; got {', '.join(unknown)}")
+    values: dict[str, float] = {}
+    for name, value in params.items():
+        low, high = PARAM_RANGES[name]
+        number = not isinstance(value, bool) and isinstance(value, int | float)
+        if not number or not math.isfinite(value) or not low <= value <= high:
+            raise ValueError(f"{name} must be a number >= {low} and <= {high}, got {value!r}")
+        if name == "count" and value != int(value):
+            raise ValueError(f"count must be a whole number, got {value:g}")
+        values[name] = value
+    return values
 
 
 def _fill_unseen(host: LineSettings, own: LineSettings) -> LineSettings:

@@ -1,5 +1,16 @@
 """What every transport offers the device host. Transports move bytes and report line settings;
-they never parse the protocol."""
+they never parse the protocol.
+
+Flow control (both directions are bounded, like a real serial line):
+- Input: before each read a transport asks `PortSink.room()` how many host bytes the emulated wire
+  can take now, reads at most that many, and stops reading while it is 0, leaving the rest in the
+  OS buffer, so the host's write blocks as on a real port. The sink calls `resume_reading()` once
+  room has reopened. A transport also reads in bounded slices per wakeup, so one flooding port
+  cannot starve the others.
+- Output: `write` keeps a bounded buffer of what the host has not taken yet and drops what does not
+  fit (a real host's UART overruns the same way); it returns how many bytes it dropped, for the
+  sink's count.
+"""
 
 from __future__ import annotations
 
@@ -19,6 +30,14 @@ class PortSink(Protocol):
     def host_line(self, host: LineSettings) -> None: ...
 
     def host_data(self, data: bytes) -> None: ...
+
+    def room(self) -> int:
+        """How many host bytes the transport may pass to `host_data` now (0: stop reading)."""
+        ...
+
+    def input_discarded(self, count: int) -> None:
+        """`count` host bytes were thrown away unread (the host hung up with them still queued)."""
+        ...
 
 
 class Transport(ABC):
@@ -41,8 +60,14 @@ class Transport(ABC):
         """Create the port and start reporting to `sink` (inside the running event loop)."""
 
     @abstractmethod
-    def write(self, data: bytes) -> None:
-        """Send bytes to the attached host (never blocks; buffers if the host is slow)."""
+    def write(self, data: bytes) -> int:
+        """Send bytes to the attached host (never blocks); returns how many of them were dropped
+        because the host is not taking output and the transport's bounded buffer is full."""
+
+    def resume_reading(self) -> None:
+        """The sink has room again: read what was left waiting because `room()` was 0. Called from
+        inside the sink's own processing, so a transport must read later, not within this call."""
+        return None
 
     @abstractmethod
     def close(self) -> None:

@@ -9,10 +9,13 @@ from emulator.transports.base import PortSink, Transport
 class MemoryTransport(Transport):
     kind = "memory"
 
-    def __init__(self) -> None:
+    def __init__(self, output_limit: int | None = None) -> None:
         self.sink: PortSink | None = None
+        #: what the host has received and not yet taken; at most `output_limit` bytes (None: no limit)
         self.written = bytearray()
         self.writes: list[bytes] = []
+        self.output_limit = output_limit
+        self.resumes = 0
         self.vanished = False
         self.closed = False
 
@@ -23,9 +26,14 @@ class MemoryTransport(Transport):
     def open(self, sink: PortSink) -> None:
         self.sink = sink
 
-    def write(self, data: bytes) -> None:
-        self.written += data
+    def write(self, data: bytes) -> int:
         self.writes.append(bytes(data))
+        room = len(data) if self.output_limit is None else max(self.output_limit - len(self.written), 0)
+        self.written += data[:room]
+        return max(len(data) - room, 0)
+
+    def resume_reading(self) -> None:
+        self.resumes += 1
 
     def close(self) -> None:
         self.closed = True
@@ -43,6 +51,10 @@ class MemoryTransport(Transport):
     def send(self, data: bytes) -> None:
         assert self.sink is not None
         self.sink.host_data(data)
+
+    def room(self) -> int:
+        assert self.sink is not None
+        return self.sink.room()
 
     def take(self) -> bytes:
         data = bytes(self.written)

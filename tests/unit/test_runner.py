@@ -1,8 +1,8 @@
-"""The device host on a manual clock: contract calls, pacing, timers, faults, traffic log."""
+"""The device host on a manual clock: contract calls, pacing, timers, faults, traffic log, and the
+bounds between host and device (input backlog, output drops, fault parameters)."""
 
 from __future__ import annotations
 
-import io
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -15,7 +15,7 @@ from emulator.device import HostServices, LineSettings
 from emulator.line import FAST, REALISTIC
 from emulator.profile import load_profile
 from emulator.registry import family
-from emulator.runner import DeviceRunner
+from emulator.runner import INPUT_BACKLOG, OUTPUT_BACKLOG, DeviceRunner
 from emulator.trafficlog import TrafficLog
 from tests.support.memory_transport import MemoryTransport
 
@@ -31,7 +31,12 @@ class Host:
     events: list[tuple[str, dict]]
 
 
-def make(timing: str = REALISTIC, overrides: dict | None = None, traffic: TrafficLog | None = None) -> Host:
+def make(
+    timing: str = REALISTIC,
+    overrides: dict | None = None,
+    traffic: TrafficLog | None = None,
+    port: MemoryTransport | None = None,
+) -> Host:
     clock = ManualClock()
     profile = load_profile(PROBE, overrides=overrides)
     events: list[tuple[str, dict]] = []
@@ -41,7 +46,7 @@ def make(timing: str = REALISTIC, overrides: dict | None = None, traffic: Traffi
         traffic=traffic,
         on_event=lambda name, ev: events.append((name, ev)),
     )
-    port = MemoryTransport()
+    port = port or MemoryTransport()
     runner.attach_transport("main", port, timing)
     port.attach(LineSettings(9600, None, None, 1, False, False))
     return Host(clock, runner, port, events)
@@ -195,11 +200,117 @@ def test_reset_gives_a_fresh_model() -> None:
     assert runner.device.host is not None
 
 
-def test_traffic_log_records_both_directions() -> None:
-    stream = io.StringIO()
-    h = make(FAST, traffic=TrafficLog(stream))
+def test_traffic_log_records_both_directions(tmp_path: Path) -> None:
+    path = tmp_path / "traffic.jsonl"
+    traffic = TrafficLog(path)
+    h = make(FAST, traffic=traffic)
     port = h.port
     port.send(b"E ok\r")
-    entries = [json.loads(line) for line in stream.getvalue().splitlines()]
+    traffic.close()
+    entries = [json.loads(line) for line in path.read_text().splitlines()]
     assert [(e["dir"], e["hex"]) for e in entries] == [("rx", "45 20 6f 6b 0d"), ("tx", "6f 6b 0d")]
     assert entries[0]["device"] == "probe-0" and entries[0]["summary"] == "rx b'E ok\\r'"
+
+
+# ---- bounds between host and device --------------------------------------------------------------
+
+
+def test_input_backlog_bounds_what_the_port_takes_and_reopens_at_half() -> None:
+    h = make()
+    port = h.port
+    assert port.room() == INPUT_BACKLOG >= 1588  # an MP-285 99-vector download fits in one write
+    port.send(b"x" * 1000)
+    assert port.room() == INPUT_BACKLOG - 1000
+    port.send(b"x" * (INPUT_BACKLOG - 1000))
+    assert port.room() == 0
+    resumes = port.resumes
+    h.clock.advance((INPUT_BACKLOG // 2 - 1) * CHAR)  # one byte short of half delivered
+    assert port.resumes == resumes, "no resume while the backlog is above half"
+    h.clock.advance(CHAR)
+    assert port.resumes > resumes
+    assert port.room() == INPUT_BACKLOG // 2
+    assert len(h.runner.device.received) == INPUT_BACKLOG // 2
+
+
+def test_output_backlog_stops_input_until_it_drains() -> None:
+    h = make()
+    port = h.port
+    port.send(b"B 5000\r")
+    h.clock.advance(7 * CHAR)  # the command is in; 5000 bytes of reply wait for the wire
+    assert port.room() == 0
+    resumes = port.resumes
+    h.clock.advance((5000 - OUTPUT_BACKLOG // 2) * CHAR)
+    assert port.resumes > resumes
+    assert port.room() == INPUT_BACKLOG
+    assert port.take() == b"x" * (5000 - OUTPUT_BACKLOG // 2)
+
+
+def test_a_hung_device_still_paces_what_the_port_takes() -> None:
+    h = make()
+    h.runner.inject("main", "hang", {})
+    h.port.send(b"E lost\r")
+    assert h.port.room() == INPUT_BACKLOG - 7
+    h.clock.advance(7 * CHAR)
+    assert h.port.room() == INPUT_BACKLOG
+    assert h.runner.device.received == [] and h.port.take() == b""
+
+
+def test_output_drops_are_counted_and_logged_once_per_episode(caplog: pytest.LogCaptureFixture) -> None:
+    h = make(FAST, port=MemoryTransport(output_limit=8))
+    port = h.port
+    stats = h.runner.channels["main"].stats
+    with caplog.at_level("INFO", logger="stage_emu.runner"):
+        for _ in range(3):
+            port.send(b"E abcdef\r")  # 7 bytes of reply each: the second and third do not fit
+        assert port.take() == b"abcdef\r" + b"a"
+        assert stats.describe() == {"output_dropped": 13, "input_discarded": 0}
+        port.send(b"E ok\r")
+        assert port.take() == b"ok\r"
+        port.send(b"E 123456789\r")
+    messages = [(r.levelname, r.getMessage()) for r in caplog.records if "output" in r.getMessage()]
+    assert messages == [
+        (
+            "WARNING",
+            "probe-0/main: host is not reading; output that does not fit its buffer is dropped "
+            "(6 bytes dropped on this port so far)",
+        ),
+        ("INFO", "probe-0/main: host takes output again"),
+        (
+            "WARNING",
+            "probe-0/main: host is not reading; output that does not fit its buffer is dropped "
+            "(15 bytes dropped on this port so far)",
+        ),
+    ]
+
+
+def test_input_discarded_at_hangup_is_counted() -> None:
+    h = make()
+    ch = h.runner.channels["main"]
+    h.port.send(b"E never heard\r")
+    h.clock.advance(4 * CHAR)
+    assert h.port.sink is not None
+    h.port.sink.input_discarded(100)  # what the transport threw away unread
+    h.runner.host_detached(ch)
+    assert ch.stats.describe() == {"output_dropped": 0, "input_discarded": 110}
+    assert h.port.room() == INPUT_BACKLOG
+
+
+@pytest.mark.parametrize(
+    ("fault", "params", "message"),
+    [
+        ("latency", {}, "latency needs ms=M"),
+        ("latency", {"ms": float("nan")}, "ms must be a number >= 0 and <= 60000, got nan"),
+        ("latency", {"ms": 60001}, "ms must be a number >= 0 and <= 60000, got 60001"),
+        ("hang", {"seconds": float("inf")}, "seconds must be a number >= 0 and <= 86400, got inf"),
+        ("disconnect", {"seconds": 1e300}, "seconds must be a number >= 0 and <= 86400, got 1e[+]300"),
+        ("drop", {"count": 10**7}, "count must be a number >= 1 and <= 1000000, got 10000000"),
+        ("corrupt", {"count": 1.5}, "count must be a whole number, got 1.5"),
+        ("hang", {"second": 5}, "hang takes only seconds; got second"),
+        ("clear", {"count": 1}, "clear takes no parameters; got count"),
+    ],
+)
+def test_fault_parameters_are_checked(fault: str, params: dict, message: str) -> None:
+    h = make(FAST)
+    with pytest.raises(ValueError, match=message):
+        h.runner.inject("main", fault, params)
+    assert h.runner.channels["main"].faults.describe() == make(FAST).runner.channels["main"].faults.describe()

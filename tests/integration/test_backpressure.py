@@ -1,0 +1,149 @@
+"""Hosts that do not play by the wire's rules: one writing at full speed into a 9600-baud port, one
+writing commands without ever reading. The daemon stays bounded in memory, takes input no faster
+than the emulated line carries it, keeps serving its other ports, and counts what it dropped."""
+
+from __future__ import annotations
+
+import os
+import select
+import termios
+import threading
+import time
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import Any
+
+import pytest
+import serial
+
+from tests.support.daemon import RunningDaemon, start_daemon
+
+RIG = """spec: 1
+devices:
+  - name: flooded
+    profile: ms2000
+  - name: neighbour
+    profile: ms2000
+  - name: stage
+    profile: mp285
+  - name: unread
+    profile: ms2000
+    ports: [{timing: fast}]
+"""
+#: what the daemon may take on top of its own start-up footprint while being abused
+RSS_GROWTH_LIMIT = 10 * 1024 * 1024
+#: a reply on a quiet port while another floods: generous for a loaded 2-core machine
+REPLY_TIMEOUT = 2.0
+
+
+@pytest.fixture(scope="module")
+def daemon(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningDaemon]:
+    workdir = tmp_path_factory.mktemp("backpressure")
+    rig = workdir / "rig.yaml"
+    rig.write_text(RIG)
+    running = start_daemon(workdir, [str(rig)], expect_ports=4)
+    yield running
+    assert running.stop() == 0
+
+
+def rss(daemon: RunningDaemon) -> int:
+    for line in Path(f"/proc/{daemon.proc.pid}/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return int(line.split()[1]) * 1024
+    raise AssertionError("no VmRSS")
+
+
+@contextmanager
+def raw_host(path: str) -> Iterator[int]:
+    """A host that opens the port non-blocking at 9600 baud and never reads unless told to."""
+    fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    try:
+        attrs = termios.tcgetattr(fd)
+        attrs[4] = attrs[5] = termios.B9600
+        termios.tcsetattr(fd, termios.TCSANOW, attrs)
+        yield fd
+    finally:
+        os.close(fd)
+
+
+def write_for(fd: int, seconds: float, chunk: Callable[[int], bytes]) -> tuple[int, int | None]:
+    """Write `chunk(offset)` as fast as the port takes it for `seconds`; returns the bytes it took
+    and how many it had taken when it first refused (EAGAIN), or None if it never did."""
+    taken, first_refusal = 0, None
+    deadline = time.monotonic() + seconds
+    while (left := deadline - time.monotonic()) > 0:
+        try:
+            taken += os.write(fd, chunk(taken))
+        except BlockingIOError:
+            first_refusal = taken if first_refusal is None else first_refusal
+            select.select([], [fd], [], min(left, 0.05))
+    return taken, first_refusal
+
+
+def port_stats(daemon: RunningDaemon, device: str) -> dict[str, Any]:
+    device_entry = next(d for d in daemon.control().list() if d["device"] == device)
+    return device_entry["ports"][0]
+
+
+def wait_for(condition: Callable[[], bool], timeout: float = 5.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, "condition not met in time"
+        time.sleep(0.02)
+
+
+def test_full_speed_writer_is_paced_and_other_ports_keep_answering(daemon: RunningDaemon) -> None:
+    before = rss(daemon)
+    flood = os.urandom(2 * 1024 * 1024)
+    result: list[tuple[int, int | None]] = []
+    with raw_host(daemon.port("flooded")) as fd:
+        writer = threading.Thread(
+            target=lambda: result.append(write_for(fd, 4.0, lambda at: flood[at : at + 65536]))
+        )
+        writer.start()
+        with (
+            serial.Serial(daemon.port("neighbour"), 9600, timeout=REPLY_TIMEOUT) as ms2000,
+            serial.Serial(daemon.port("stage"), 9600, timeout=REPLY_TIMEOUT) as mp285,
+        ):
+            ms2000.write(b"W X\r")
+            expected_x = ms2000.read_until(b"\r\n")
+            assert expected_x == b":A 0\r\n"
+            mp285.write(b"c\r")
+            expected_c = mp285.read(13)
+            assert len(expected_c) == 13 and expected_c.endswith(b"\r")
+            rounds = 0
+            while writer.is_alive():
+                ms2000.write(b"W X\r")
+                assert ms2000.read_until(b"\r\n") == expected_x
+                mp285.write(b"c\r")
+                assert mp285.read(13) == expected_c
+                rounds += 1
+        writer.join()
+        taken, first_refusal = result[0]
+        # The kernel holds ~12 KiB, the daemon 4 KiB, and 4 s of 9600 baud carry ~3.8 KiB.
+        assert first_refusal is not None and first_refusal < 64 * 1024, result
+        assert taken < 64 * 1024, result
+        assert rounds >= 5
+        assert rss(daemon) - before < RSS_GROWTH_LIMIT
+    # The host hung up while the port was not reading: seen all the same, the rest discarded.
+    wait_for(lambda: not port_stats(daemon, "flooded")["attached"])
+    assert port_stats(daemon, "flooded")["stats"]["input_discarded"] > 0
+
+
+def test_host_that_never_reads_loses_output_and_is_answered_after_reading(daemon: RunningDaemon) -> None:
+    before = rss(daemon)
+    commands = b"W X\r" * 1024
+    with raw_host(daemon.port("unread")) as fd:
+        write_for(fd, 2.0, lambda at: commands[at % 4 :])  # whole commands, even after a short write
+        assert rss(daemon) - before < RSS_GROWTH_LIMIT
+        wait_for(lambda: port_stats(daemon, "unread")["stats"]["output_dropped"] > 0)
+        termios.tcflush(fd, termios.TCIFLUSH)
+        while select.select([fd], [], [], 0.5)[0]:  # what the daemon still held comes after the flush
+            os.read(fd, 65536)
+        os.write(fd, b"W X\r")
+        reply = b""
+        while not reply.endswith(b"\r\n"):
+            assert select.select([fd], [], [], REPLY_TIMEOUT)[0], f"no reply, got {reply!r}"
+            reply += os.read(fd, 100)
+        assert reply == b":A 0\r\n"
