@@ -88,6 +88,10 @@ class Device(ABC):
     #: delivers at once even on a `timing: realistic` port. Re-read on every pump, so a model may
     #: change it at runtime (the MP-285 clears it while its UART model times a mismatched line).
     pace_line: bool = True
+    #: the last failure to keep non-volatile memory on disk (a one-line message), None while the
+    #: last save worked; the model goes on working from its in-memory copy, so this flag (shown by
+    #: `ctl list`, with a pushed `storage_error` event) is how a host learns its saves are lost
+    storage_error: str | None = None
 
     def __init__(self, name: str, profile: Profile, now: float, services: HostServices) -> None:
         self.name = name
@@ -148,6 +152,11 @@ class Device(ABC):
         """Control-channel input `{"in": name, ...params}`."""
         raise ControlError(f"{self.name}: no input {name!r}")
 
+    def control_names(self) -> dict[str, list[str]]:
+        """The names `control_input` and `observe` accept (`ctl get DEVICE`, `ctl input --help`).
+        Default: no inputs; the snapshot's top-level keys as observables."""
+        return {"inputs": [], "observables": sorted(self.snapshot())}
+
     def summarize(self, direction: str, data: bytes) -> str | None:
         """One-line decoded summary of traffic for the traffic log (`rx` from host, `tx` to host).
         `data` is what the host handed over or what left the port in one piece; on a paced port
@@ -156,5 +165,6 @@ class Device(ABC):
 
     def forget_nonvolatile(self) -> None:
         """Erase whatever the model keeps across power cycles (saved settings), before a factory
-        reset from the control channel. Nothing by default."""
+        reset from the control channel. Nothing by default. Raises ControlError when it cannot, and
+        then leaves the model as it was (the host keeps it)."""
         return None

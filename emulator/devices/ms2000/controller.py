@@ -74,7 +74,7 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
             "version": self.cfg.version,
             "axes": list(self.cfg.motor_axes),
         }
-        self.flash = Flash(NvStore(services.state_dir, self.cfg.device_id), identity)
+        self.flash = Flash(NvStore(services.state_dir, self.cfg.device_id), identity, self.storage_result)
         self.axes = [
             Axis(
                 self,

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from emulator.device import ControlError
 from emulator.devices.ms2000.axis import LOWER, UPPER
 from emulator.devices.ms2000.config import baud_of
 from emulator.devices.ms2000.settings import (
@@ -18,10 +19,13 @@ from emulator.devices.ms2000.settings import (
     to_plain,
 )
 from emulator.motion import round_half_away
+from emulator.nvstore import StorageError
 
 CLOCK_MARK_S = 600.0
 CLOCK_MARK_CODE = 255
 IDENTITY_MISMATCH_CODE = 55
+#: characters of a rejected stored value's repr shown in its warning
+REPR_LIMIT = 40
 
 
 class PowerMixin:
@@ -68,37 +72,79 @@ class PowerMixin:
             self.flash.write(pending_factory=False)
         self.baud = baud_of(self.dip["sw4"], self.dip["sw5"])
         if cold:
-            physical = self.flash.section("physical") or {}
+            physical = self._section(self.flash.data, "physical") or {}
             for axis in self.axes:
-                counts = physical.get(axis.hw_letter)
-                if finite_number(counts):
-                    axis.traj = axis.traj.rest(t, float(counts))
+                counts = self._number(physical, axis.hw_letter, "physical")
+                if counts is not None:
+                    axis.traj = axis.traj.rest(t, counts)
         self._restore_settings()
-        positions = self.flash.section("positions") or {}
+        positions = self._section(self.flash.data, "positions") or {}  # null after SP X=1
         for axis in self.axes:
-            saved = positions.get(axis.hw_letter)
+            saved = self._number(positions, axis.hw_letter, "positions")
             axis.origin = 0.0
             here = axis.user_mm(t)
-            axis.origin = here - saved if finite_number(saved) else here
+            axis.origin = here - saved if saved is not None else here
         self._restart(t)
         if not same:
             self.log_error(IDENTITY_MISMATCH_CODE)
 
     def _restore_settings(self) -> None:
-        saved = self.flash.section("saved") or {}
-        auto = self.flash.section("auto") or {}
-        saved_axes = _mapping(saved.get("axes"))
-        auto_axes = _mapping(auto.get("axes"))
+        saved = self._section(self.flash.data, "saved") or {}
+        auto = self._section(self.flash.data, "auto") or {}
+        saved_axes = self._section(saved, "axes", "saved") or {}
+        auto_axes = self._section(auto, "axes", "auto") or {}
+        reject = self._unusable
         for axis in self.axes:
-            axis.s = from_plain(self._factory_axis(axis.hw_letter), saved_axes.get(axis.hw_letter))
-            axis.auto = from_plain(self.factory_auto(axis.hw_letter), auto_axes.get(axis.hw_letter))
-            axis.letter = chr(axis.s.rename) if axis.s.rename else axis.hw_letter
-        self.card = from_plain(self._factory_card(), saved.get("card"))
-        self.card_auto = from_plain(CardAuto(), auto.get("card"))
-        saved_modules = _mapping(saved.get("modules"))
+            letter = axis.hw_letter
+            axis.s = from_plain(
+                self._factory_axis(letter), saved_axes.get(letter), f"saved.axes.{letter}", reject
+            )
+            axis.auto = from_plain(
+                self.factory_auto(letter), auto_axes.get(letter), f"auto.axes.{letter}", reject
+            )
+            axis.letter = chr(axis.s.rename) if axis.s.rename else letter
+        self.card = from_plain(self._factory_card(), saved.get("card"), "saved.card", reject)
+        self.card_auto = from_plain(CardAuto(), auto.get("card"), "auto.card", reject)
+        saved_modules = self._section(saved, "modules", "saved") or {}
         for name, module in self.modules.items():
-            data = saved_modules.get(name)
-            module.restore(data if isinstance(data, dict) else None)
+            data = self._section(saved_modules, name, "saved.modules")
+            module.restore(data)
+            # modules check their own values; one that did not take a stored value kept its factory value
+            kept = module.save()
+            for key, value in (data or {}).items():
+                if key in kept and kept[key] is not value and kept[key] != value:
+                    reject(f"saved.modules.{name}.{key}", value)
+
+    def _section(self, mapping: dict[str, Any], key: str, within: str = "") -> dict[str, Any] | None:
+        """The stored mapping `mapping[key]`; None when absent or (reported) not a mapping."""
+        value = mapping.get(key)
+        if value is None or isinstance(value, dict):
+            return value
+        self._unusable(f"{within}.{key}" if within else key, value)
+        return None
+
+    def _number(self, mapping: dict[str, Any], key: str, within: str) -> float | None:
+        """The stored finite number `mapping[key]`; None when absent or (reported) anything else."""
+        if key not in mapping:
+            return None
+        value = mapping[key]
+        if finite_number(value):
+            return float(value)
+        self._unusable(f"{within}.{key}", value)
+        return None
+
+    def _unusable(self, path: str, value: Any) -> None:
+        """A stored value the model cannot use keeps its factory value, silently for the host as
+        on a real controller, but said in the log: once per key per load (not again at `~`)."""
+        if path in self.flash.reported:
+            return
+        self.flash.reported.add(path)
+        text = repr(value)
+        if len(text) > REPR_LIMIT:
+            text = text[: REPR_LIMIT - 3] + "..."
+        self.log.warning(
+            "%s: stored %s = %s cannot be used; keeping the factory value", self.name, path, text
+        )
 
     def _restart(self, t: float) -> None:
         """What power-up and reset share: motion stopped, volatile state cleared, clocks restarted."""
@@ -199,10 +245,27 @@ class PowerMixin:
 
     def forget_nonvolatile(self) -> None:
         """Erase the device's flash (a factory-fresh controller), e.g. for a host's `reset` op."""
-        self.flash.store.erase()
-        self.flash.data = {}
+        try:
+            self.flash.erase()
+        except StorageError as failure:
+            raise ControlError(
+                f"{self.name}: factory reset refused, saved settings kept: {failure}"
+            ) from failure
 
-
-def _mapping(value: Any) -> dict[str, Any]:
-    """A section of the store that should be a JSON object ({} when it is not)."""
-    return value if isinstance(value, dict) else {}
+    def storage_result(self, failure: StorageError | None) -> None:
+        """The outcome of every flash operation (Flash's `on_result`). The controller works on from
+        its in-memory flash and still acks `SS Z`, as a real one does; a failure is flagged
+        (`storage_error`, shown by `ctl list`) and pushed as an event, a successful save clears it."""
+        if failure is None:
+            self.storage_error = None
+            return
+        self.storage_error = str(failure)
+        self.push_event(
+            {
+                "ev": "storage_error",
+                "t": self._now,
+                "op": failure.op,
+                "path": str(failure.path),
+                "error": failure.reason,
+            }
+        )

@@ -113,17 +113,29 @@ _USABLE: dict[str, Callable[[Any], bool]] = {
 }
 
 
-def from_plain(factory: T, data: Any) -> T:
-    """`factory` updated with the known keys of `data`. Unknown keys and values of another type, not
-    finite or unusable (`_USABLE`) are ignored, so a store written by another version or edited by
-    hand still loads."""
+#: told the key path (`saved.axes.X.speed`) and value of a stored value that keeps its factory value
+Reject = Callable[[str, Any], None]
+
+
+def from_plain(factory: T, data: Any, path: str, reject: Reject) -> T:
+    """`factory` updated with the known keys of `data` (the stored mapping at `path`; None when
+    nothing is stored). Values of another type, not finite or unusable (`_USABLE`) keep the factory
+    value and go to `reject`; unknown keys are ignored, so a store written by another version or
+    edited by hand still loads."""
+    if data is None:
+        return dataclasses.replace(factory)  # type: ignore[type-var]
     if not isinstance(data, dict):
+        reject(path, data)
         return dataclasses.replace(factory)  # type: ignore[type-var]
     current = to_plain(factory)
     updates = {}
     for key, value in data.items():
-        if key in current and _same_kind(current[key], value) and _usable(key, value):
-            updates[key] = _merged(current[key], value)
+        if key not in current:
+            continue
+        if _same_kind(current[key], value) and _usable(key, value):
+            updates[key] = _merged(current[key], value, f"{path}.{key}", reject)
+        else:
+            reject(f"{path}.{key}", value)
     return dataclasses.replace(factory, **updates)  # type: ignore[type-var]
 
 
@@ -146,8 +158,16 @@ def _same_kind(old: Any, new: Any) -> bool:
     return isinstance(new, type(old))
 
 
-def _merged(old: Any, new: Any) -> Any:
+def _merged(old: Any, new: Any, path: str, reject: Reject) -> Any:
     """A stored mapping (BCA assignments) keeps the factory keys, each updated by a value of its kind."""
-    if isinstance(old, dict):
-        return {**old, **{k: v for k, v in new.items() if k in old and _same_kind(old[k], v)}}
-    return new
+    if not isinstance(old, dict):
+        return new
+    merged = dict(old)
+    for key, value in new.items():
+        if key not in old:
+            continue
+        if _same_kind(old[key], value):
+            merged[key] = value
+        else:
+            reject(f"{path}.{key}", value)
+    return merged

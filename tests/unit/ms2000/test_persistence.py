@@ -1,15 +1,23 @@
 """Non-volatile memory, reset and power (MS-110…MS-113, MS-111): TV-105…TV-110, emulator restarts,
-the NvStore file format and corrupt files."""
+the NvStore file format, corrupt files, failing disks and unusable stored values."""
 
 from __future__ import annotations
 
+import errno
 import json
 import logging
+import os
 from pathlib import Path
 
 import pytest
 
+from emulator import nvstore
+from emulator.clock import ManualClock
+from emulator.device import ControlError, HostServices, LineSettings
+from emulator.devices.ms2000.controller import MS2000
 from emulator.nvstore import NvStore
+from emulator.runner import DeviceRunner
+from tests.support.memory_transport import MemoryTransport
 from tests.unit.ms2000.conftest import Harness
 
 ACK = b":A\r\n"
@@ -205,12 +213,118 @@ def test_store_that_is_not_utf8_is_set_aside(tmp_path: Path, caplog: pytest.LogC
     assert len(list(tmp_path.glob("ms2000-0001.json.corrupt-*"))) == 1
 
 
-def test_nvstore_erase_failure_is_logged(tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
-    (tmp_path / "d.json").mkdir()  # unlink() of a directory fails
-    store = NvStore(tmp_path, "d")
+def test_failed_ss_z_still_acks_and_is_flagged_until_a_save_works_ms111(
+    stored: Harness, tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A full disk loses `SS Z` silently for the serial host, as on a real controller, but the
+    control channel sees it: an event, the `storage_error` flag (`ctl list`) and a log line."""
+
+    def disk_full(fd: int) -> None:
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    path = tmp_path / "ms2000-0001.json"
+    assert stored.cmd("S X=3.3") == ACK
+    monkeypatch.setattr(nvstore.os, "fsync", disk_full)
     with caplog.at_level(logging.ERROR):
-        store.erase()
-    assert "cannot erase" in caplog.text and store.load() == {}
+        assert stored.cmd("SS Z") == ACK
+    (event,) = stored.take_events("storage_error")
+    assert event == {
+        "ev": "storage_error",
+        "t": stored.t,
+        "op": "save",
+        "path": str(path),
+        "error": "No space left on device",
+    }
+    assert stored.dev.storage_error == f"cannot save {path}: No space left on device"
+    assert f"cannot save {path}" in caplog.text
+    assert not path.exists() and os.listdir(tmp_path) == []
+    stored.input("power_cycle")  # the controller works on from its in-memory flash
+    assert stored.cmd("S X?") == b":A X=3.300000\r\n"
+    monkeypatch.undo()
+    assert stored.cmd("SS Z") == ACK
+    assert stored.dev.storage_error is None
+    assert stored.take_events("storage_error")  # those of the power cycle's position save
+    stored.restart()
+    assert stored.cmd("S X?") == b":A X=3.300000\r\n"
+
+
+def test_unreadable_store_is_flagged_and_starts_from_factory_ms111(tmp_path: Path) -> None:
+    (tmp_path / "ms2000-0001.json").mkdir()
+    h = Harness(state_dir=tmp_path)
+    assert h.cmd("S X?") == b":A X=5.145600\r\n"
+    assert (h.dev.storage_error or "").startswith(f"cannot load {tmp_path / 'ms2000-0001.json'}: ")
+    assert [e["op"] for e in h.take_events("storage_error")] == ["load"]
+
+
+def test_reset_whose_erase_fails_is_refused_and_keeps_the_device_ms111(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The host's factory reset erases the flash first; when that fails the runner keeps the old
+    model and its saved settings, and the control request fails (`ctl reset` exits 1)."""
+    profile = Harness().profile
+    runner = DeviceRunner(lambda now: MS2000("dut", profile, now, HostServices(tmp_path)), ManualClock())
+    port = MemoryTransport()
+    runner.attach_transport("main", port, "fast")
+    port.attach(LineSettings(baud=9600, stop_bits=1))
+    port.send(b"S X=3.3\rSS Z\rS X=1\r")
+    assert port.take() == ACK * 3
+    path = tmp_path / "ms2000-0001.json"
+    before = path.read_bytes()
+    old = runner.device
+
+    def read_only(self: Path, missing_ok: bool = False) -> None:
+        raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(self))
+
+    monkeypatch.setattr(Path, "unlink", read_only)
+    with pytest.raises(
+        ControlError, match=f"^dut: factory reset refused, saved settings kept: cannot erase {path}"
+    ):
+        runner.reset()
+    monkeypatch.undo()
+    assert runner.device is old
+    assert old.storage_error == f"cannot erase {path}: Permission denied"
+    port.send(b"S X?\r")
+    assert port.take() == b":A X=1.000000\r\n", "the running model is untouched, unsaved changes included"
+    assert path.read_bytes() == before
+    runner.reset()
+    assert runner.device is not old and not path.exists()
+
+
+def test_unusable_stored_values_are_logged_once_per_key_ms111(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Each stored value that keeps its factory value is named in one warning per load, with its
+    key path and a short repr; a software reset (`~`) restores the same values without repeating."""
+    Harness(state_dir=tmp_path).cmd("SS Z")
+    path = tmp_path / "ms2000-0001.json"
+    data = json.loads(path.read_text())
+    data["saved"]["axes"]["X"]["speed"] = "fast"
+    data["saved"]["axes"]["Y"]["counts_per_mm"] = 0
+    data["saved"]["axes"]["Z"]["future_setting"] = 1  # another version's key: ignored, not reported
+    data["saved"]["card"]["user_string"] = "x" * 100
+    data["saved"]["modules"]["LED DIMMER"]["X"] = "bright"
+    data["auto"] = {"axes": "none", "card": {"bca": {"Y": [1]}}}
+    data["positions"] = {"X": float("nan")}
+    data["physical"] = {"Z": "far"}
+    path.write_text(json.dumps(data))
+    with caplog.at_level(logging.WARNING, logger="stage_emu.device.dut"):
+        h = Harness(state_dir=tmp_path)
+        assert h.cmd("~") == ACK
+        assert h.cmd("~") == ACK
+    factory = "cannot be used; keeping the factory value"
+    assert sorted(r.getMessage() for r in caplog.records) == sorted(
+        [
+            f"dut: stored saved.axes.X.speed = 'fast' {factory}",
+            f"dut: stored saved.axes.Y.counts_per_mm = 0 {factory}",
+            f"dut: stored saved.card.user_string = '{'x' * 36}... {factory}",
+            f"dut: stored saved.modules.LED DIMMER.X = 'bright' {factory}",
+            f"dut: stored auto.axes = 'none' {factory}",
+            f"dut: stored auto.card.bca.Y = [1] {factory}",
+            f"dut: stored positions.X = nan {factory}",
+            f"dut: stored physical.Z = 'far' {factory}",
+        ]
+    )
+    assert h.cmd("S X?") == b":A X=5.145600\r\n"
 
 
 @pytest.mark.parametrize(

@@ -1,0 +1,140 @@
+"""NvStore: failures are raised as StorageError (never swallowed), writes stay atomic when the disk
+fails, and temporary files orphaned by a killed writer are removed at the next start (MS-111)."""
+
+from __future__ import annotations
+
+import errno
+import logging
+import os
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+from emulator import nvstore
+from emulator.nvstore import LEGACY_TEMP_AGE_S, NvStore, StorageError
+
+
+def disk_full(fd: int) -> None:
+    raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+
+def dead_pid() -> int:
+    """The pid of a process that has exited and been reaped."""
+    child = subprocess.Popen([sys.executable, "-c", "pass"])
+    child.wait()
+    return child.pid
+
+
+@pytest.fixture
+def live_child() -> Iterator[int]:
+    """A running process other than this one (it reads stdin until the test closes it)."""
+    child = subprocess.Popen([sys.executable, "-c", "import sys; sys.stdin.read()"], stdin=subprocess.PIPE)
+    yield child.pid
+    assert child.stdin is not None
+    child.stdin.close()
+    child.wait()
+
+
+def test_save_on_a_full_disk_raises_and_leaves_the_old_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    store = NvStore(tmp_path, "dev")
+    store.save({"v": 1})
+    monkeypatch.setattr(nvstore.os, "fsync", disk_full)
+    with caplog.at_level(logging.ERROR), pytest.raises(StorageError) as failure:
+        store.save({"v": 2})
+    assert failure.value.op == "save" and failure.value.path == tmp_path / "dev.json"
+    assert failure.value.reason == "No space left on device"
+    assert str(failure.value) == f"cannot save {tmp_path / 'dev.json'}: No space left on device"
+    assert "cannot save" in caplog.text
+    assert store.load() == {"v": 2}, "the in-memory flash holds the new data for the life of the model"
+    monkeypatch.undo()
+    assert NvStore(tmp_path, "dev").load() == {"v": 1}
+    assert os.listdir(tmp_path) == ["dev.json"], "the failed write's temporary file is gone"
+
+
+def test_save_into_an_unusable_state_dir_raises(tmp_path: Path) -> None:
+    blocker = tmp_path / "state"
+    blocker.write_text("a file where the directory should be")
+    store = NvStore(blocker, "dev")
+    with pytest.raises(StorageError, match="cannot save"):
+        store.save({"v": 1})
+
+
+def test_unreadable_file_raises_once_then_reads_as_empty(tmp_path: Path) -> None:
+    (tmp_path / "dev.json").mkdir()
+    store = NvStore(tmp_path, "dev")
+    with pytest.raises(StorageError) as failure:
+        store.load()
+    assert failure.value.op == "load"
+    assert store.load() == {}
+
+
+def test_erase_failure_raises_and_keeps_the_contents(tmp_path: Path) -> None:
+    (tmp_path / "dev.json").write_text('{"v": 1}')
+    store = NvStore(tmp_path, "dev")
+    assert store.load() == {"v": 1}
+    (tmp_path / "dev.json").unlink()
+    (tmp_path / "dev.json").mkdir()  # unlink() of a directory fails
+    with pytest.raises(StorageError) as failure:
+        store.erase()
+    assert failure.value.op == "erase"
+    assert store.load() == {"v": 1}
+
+
+def test_temporary_file_names_carry_the_writer_pid(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    renamed: list[str] = []
+    replace = os.replace
+
+    def spy(src: str, dst: str) -> None:
+        renamed.append(Path(src).name)
+        replace(src, dst)
+
+    monkeypatch.setattr(nvstore.os, "replace", spy)
+    NvStore(tmp_path, "dev").save({})
+    (name,) = renamed
+    assert name.startswith(f".dev.json.{os.getpid()}.") and name.endswith(".tmp")
+
+
+def test_orphaned_temporary_files_of_dead_writers_are_removed(
+    tmp_path: Path, live_child: int, caplog: pytest.LogCaptureFixture
+) -> None:
+    gone = dead_pid()
+    orphan = tmp_path / f".dev.json.{gone}.abc_123x.tmp"
+    kept = {
+        f".dev.json.{os.getpid()}.k3j4h5g6.tmp": "this process may be writing",
+        f".dev.json.{live_child}.k3j4h5g6.tmp": "another live process may be writing",
+        f".other.json.{gone}.k3j4h5g6.tmp": "another store's",
+        f"dev.json.{gone}.k3j4h5g6.tmp": "no leading dot",
+        f".dev.json.{gone}.k3j4h5g6.tmp.bak": "not our suffix",
+        "dev.json.corrupt-20240101T000000": "kept for inspection",
+    }
+    for name in [orphan.name, *kept]:
+        (tmp_path / name).write_text("x")
+    target = tmp_path / "target"
+    target.write_text("keep me")
+    (tmp_path / f".dev.json.{gone}.symlink1.tmp").symlink_to(target)
+    (tmp_path / f".dev.json.{gone}.dirdir12.tmp").mkdir()
+    with caplog.at_level(logging.INFO, logger="stage_emu.nvstore"):
+        NvStore(tmp_path, "dev")
+    assert not orphan.exists()
+    for name, why in kept.items():
+        assert (tmp_path / name).exists(), why
+    assert (tmp_path / f".dev.json.{gone}.symlink1.tmp").is_symlink() and target.read_text() == "keep me"
+    assert (tmp_path / f".dev.json.{gone}.dirdir12.tmp").is_dir()
+    assert "removed 1 orphaned temporary file" in caplog.text
+
+
+def test_pidless_temporary_files_of_earlier_versions_are_removed_once_old(tmp_path: Path) -> None:
+    old = tmp_path / ".dev.json.a1b2c3d4.tmp"
+    fresh = tmp_path / ".dev.json.e5f6g7h8.tmp"
+    for path in (old, fresh):
+        path.write_text("x")
+    stale = os.stat(old).st_mtime - LEGACY_TEMP_AGE_S - 1
+    os.utime(old, (stale, stale))
+    NvStore(tmp_path, "dev")
+    assert not old.exists()
+    assert fresh.exists(), "a writer of an earlier version may still be renaming it"
