@@ -11,14 +11,26 @@ from typing import Any
 
 import click
 
+from emulator import registry
+from emulator.clock import MAX_SCALE, MAX_STEP, MIN_SCALE, check_scale, check_step
 from emulator.control import ControlClient, ControlFailure, RequestError
 from emulator.daemon import Daemon, DaemonOptions
+from emulator.device import HostServices
 from emulator.line import TIMINGS
-from emulator.profile import ProfileError, bundled_dir, bundled_names, load_profile
+from emulator.profile import (
+    ProfileError,
+    bundled_dir,
+    bundled_names,
+    display_path,
+    is_rig,
+    load_profile,
+    resolve_reference,
+)
 from emulator.rig import load_rig, rig_from_profiles
+from emulator.runtime import SetupError, runtime_dir
 from emulator.schema import DerivedDefault, plain
-from emulator.transports.pty import PortError, runtime_dir
-from emulator.yamlsource import SourceError, load_located
+from emulator.transports.pty import PortError
+from emulator.yamlsource import SourceError, read_source
 
 DEFAULT_RIG = "rig.yaml"
 
@@ -26,6 +38,29 @@ DEFAULT_RIG = "rig.yaml"
 def _fail(message: str) -> None:
     click.echo(f"stage-emu: {message}", err=True)
     sys.exit(1)
+
+
+class CheckedFloat(click.ParamType):
+    """A float option checked by `check` (finite, in range) with its message as the usage error."""
+
+    name = "number"
+
+    def __init__(self, check: Any, bounds: str) -> None:
+        self._check = check
+        self._bounds = bounds
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> float:
+        try:
+            return float(self._check(float(value)))
+        except ValueError as exc:
+            self.fail(str(exc), param, ctx)
+
+    def get_metavar(self, param: click.Parameter, ctx: click.Context | None = None) -> str:
+        return self._bounds
+
+
+TIME_SCALE = CheckedFloat(check_scale, f"[{MIN_SCALE:g}..{MAX_SCALE:g}]")
+STEP_SECONDS = CheckedFloat(check_step, f"[0..{MAX_STEP:g}]")
 
 
 @click.group()
@@ -47,7 +82,7 @@ def main() -> None:
     "--timing", type=click.Choice(TIMINGS), help="Pace every port at its baud rate, or deliver at once."
 )
 @click.option(
-    "--time-scale", type=float, default=1.0, show_default=True, help="Device seconds per wall second."
+    "--time-scale", type=TIME_SCALE, default=1.0, show_default=True, help="Device seconds per wall second."
 )
 @click.option(
     "--ready-file",
@@ -81,12 +116,13 @@ def serve(
 ) -> None:
     """Serve RIG (default: the bundled rig, one MP-285 and one MS2000) until Ctrl-C.
 
-    Prints one JSON line per port: {"device", "profile", "port", "path", "pts"}."""
+    Prints one JSON line per port: {"device", "profile", "port", "path", "pts"}. Only `path` is
+    stable: `pts` changes when a port is re-created (a `disconnect` fault). SIGINT, SIGTERM, SIGHUP
+    and SIGQUIT stop it cleanly; SIGUSR1 reopens the traffic log. To run two daemons at once, give
+    the second its own --link-dir and --control."""
     logging.basicConfig(
         level=logging.INFO if verbose else logging.WARNING, format="stage-emu: %(message)s", stream=sys.stderr
     )
-    if time_scale <= 0:
-        _fail(f"--time-scale must be > 0, got {time_scale}")
     if rig is not None and profiles:
         _fail("give either a rig file or --profile options, not both")
     try:
@@ -96,39 +132,39 @@ def serve(
             spec = load_rig(rig if rig is not None else bundled_dir() / DEFAULT_RIG)
         options = DaemonOptions(timing, time_scale, ready_file, log_traffic, state_dir, control, link_dir)
         code = asyncio.run(Daemon(spec, options).run())
-    except (SourceError, PortError, RequestError) as exc:
+    except (SourceError, PortError, RequestError, SetupError) as exc:
         _fail(str(exc))
+    except OSError as exc:  # anything else the system refused at start: one line, no traceback
+        _fail(f"{exc.filename + ': ' if exc.filename else ''}{exc.strerror or exc}")
     sys.exit(code)
 
 
 @main.command()
 def profiles() -> None:
     """List the bundled profiles."""
-    for name in bundled_names():
+    names = bundled_names()
+    width = max((len(name) for name in names), default=0) + 2
+    for name in names:
         try:
             profile = load_profile(name)
         except ProfileError as exc:
-            click.echo(f"{name:<22} (invalid: {exc})")
+            click.echo(f"{name:<{width}}(invalid: {exc})")
             continue
-        click.echo(f"{name:<22} {profile.family:<8} {profile.description}")
+        click.echo(f"{name:<{width}}{profile.family:<8} {profile.description}")
 
 
 @main.command()
-@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path))
 def validate(files: tuple[Path, ...]) -> None:
     """Check profile or rig FILES; exit 1 with the problems."""
     failed = False
     for path in files:
         try:
-            data = load_located(path.read_text(), str(path)).data
-            if isinstance(data, dict) and "devices" in data:
+            if is_rig(read_source(path).data):
                 load_rig(path)
             else:
                 load_profile(str(path.absolute()))
             click.echo(f"{path}: ok")
-        except OSError as exc:
-            click.echo(f"{path}: cannot read: {exc.strerror or exc}", err=True)
-            failed = True
         except SourceError as exc:
             click.echo(str(exc), err=True)
             failed = True
@@ -143,13 +179,13 @@ def describe(profile: str, as_json: bool) -> None:
     try:
         loaded = load_profile(profile)
     except ProfileError as exc:
-        _fail(str(exc))
+        _fail(_rig_hint(profile) or str(exc))
     rows = loaded.describe()
     if as_json:
         click.echo(json.dumps([row.__dict__ for row in rows], indent=2, default=str, ensure_ascii=False))
         return
     click.echo(f"{loaded.name} ({loaded.family}): {loaded.description}")
-    width = max(len(row.path) for row in rows)
+    table = []
     for row in rows:
         value = json.dumps(row.value, ensure_ascii=False)
         if isinstance(row.default, DerivedDefault):
@@ -157,7 +193,27 @@ def describe(profile: str, as_json: bool) -> None:
         else:
             default = json.dumps(plain(row.default), ensure_ascii=False)
             mark = "" if row.value == plain(row.default) else "  *"
-        click.echo(f"{row.path:<{width}}  {value:<14} default {default:<14} {row.rule:<11} {row.doc}{mark}")
+        table.append((row.path, value, default, row.rule, row.doc + mark))
+    # every column as wide as its widest cell, so long values keep the columns aligned
+    w_path, w_value, w_default, w_rule = (max(len(cells[i]) for cells in table) for i in range(4))
+    for path, value, default, rule, doc in table:
+        click.echo(
+            f"{path:<{w_path}}  {value:<{w_value}}  default {default:<{w_default}}  {rule:<{w_rule}}  {doc}"
+        )
+
+
+def _rig_hint(ref: str) -> str:
+    """If REF names a rig rather than a profile, say so and name the rig's profiles."""
+    path = resolve_reference(ref, None)
+    try:
+        data = read_source(path).data
+    except SourceError:
+        return ""
+    if not is_rig(data):
+        return ""
+    devices = data["devices"] if isinstance(data["devices"], list) else []
+    names = [d["profile"] for d in devices if isinstance(d, dict) and isinstance(d.get("profile"), str)]
+    return f"{display_path(path)} is a rig, not a profile; describe one of its profiles: {', '.join(names)}"
 
 
 @main.group()
@@ -169,7 +225,10 @@ def ctl(ctx: click.Context, control: Path | None) -> None:
 
 
 def _client(ctx: click.Context) -> ControlClient:
-    path = ctx.obj or runtime_dir() / "control.sock"
+    try:
+        path = ctx.obj or runtime_dir() / "control.sock"
+    except SetupError as exc:
+        _fail(str(exc))
     try:
         return ControlClient(path)
     except OSError as exc:
@@ -207,13 +266,41 @@ def ctl_list(ctx: click.Context) -> None:
     _run(ctx, {"op": "list"})
 
 
-@ctl.command("get")
+class NamesHelp(click.Command):
+    """A command whose --help ends with the names the bundled profiles' devices accept."""
+
+    def __init__(self, *args: Any, kind: str, **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self._kind = kind
+
+    def format_epilog(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        with formatter.section(f"{self._kind.capitalize()} of the bundled profiles"):
+            formatter.write_dl([(name, ", ".join(names)) for name, names in _bundled_names(self._kind)])
+        formatter.write_paragraph()
+        formatter.write_text(f"`stage-emu ctl get DEVICE` lists a running device's {self._kind}.")
+        formatter.write("\n")
+
+
+def _bundled_names(kind: str) -> list[tuple[str, list[str]]]:
+    """Build each family's default model (no state directory) and ask it for its names."""
+    rows = []
+    for family in sorted(registry.families()):
+        try:
+            profile = load_profile(family)
+        except ProfileError:
+            continue  # a family without a bundled profile of its own name
+        model = registry.families()[family].factory(family, profile, 0.0, HostServices())
+        rows.append((family, model.control_names()[kind]))
+    return rows
+
+
+@ctl.command("get", cls=NamesHelp, kind="observables")
 @click.argument("device")
-@click.argument("name")
+@click.argument("name", required=False)
 @click.pass_context
-def ctl_get(ctx: click.Context, device: str, name: str) -> None:
-    """Read observable NAME of DEVICE."""
-    _run(ctx, {"device": device, "get": name})
+def ctl_get(ctx: click.Context, device: str, name: str | None) -> None:
+    """Read observable NAME of DEVICE; without NAME, list DEVICE's inputs and observables."""
+    _run(ctx, {"device": device, "op": "names"} if name is None else {"device": device, "get": name})
 
 
 @ctl.command("snapshot")
@@ -225,7 +312,7 @@ def ctl_snapshot(ctx: click.Context, device: str, path: str | None) -> None:
     _run(ctx, {"device": device, "op": "snapshot", "path": path})
 
 
-@ctl.command("input")
+@ctl.command("input", cls=NamesHelp, kind="inputs")
 @click.argument("device")
 @click.argument("name")
 @click.argument("params", nargs=-1)
@@ -259,15 +346,15 @@ def ctl_power_cycle(ctx: click.Context, device: str) -> None:
 @click.pass_context
 def ctl_fault(ctx: click.Context, device: str, fault: str, params: tuple[str, ...], port: str) -> None:
     """Inject a port fault: disconnect [seconds=S], hang [seconds=S], drop [count=N], corrupt [count=N],
-    latency ms=M, clear."""
+    latency ms=M, clear. Numbers come as key=value (JSON numbers)."""
     _run(ctx, {"device": device, "op": "fault", "port": port, "fault": fault, **_params(params)})
 
 
 @ctl.command("clock")
-@click.option("--scale", type=float, help="Device seconds per wall second.")
+@click.option("--scale", type=TIME_SCALE, help="Device seconds per wall second.")
 @click.option("--pause", "action", flag_value="pause", help="Stop device time.")
 @click.option("--resume", "action", flag_value="resume", help="Restart device time.")
-@click.option("--step", type=float, help="Advance device time by this many seconds.")
+@click.option("--step", type=STEP_SECONDS, help="Advance device time by this many seconds.")
 @click.pass_context
 def ctl_clock(ctx: click.Context, scale: float | None, action: str | None, step: float | None) -> None:
     """Show or change device time."""
@@ -300,7 +387,9 @@ def ctl_watch(ctx: click.Context, device: str) -> None:
 @click.argument("request")
 @click.pass_context
 def ctl_raw(ctx: click.Context, request: str) -> None:
-    """Send one JSON REQUEST as is."""
+    """Send one JSON REQUEST as is and print the result, e.g.
+    `stage-emu ctl raw '{"device": "ms2000", "op": "snapshot", "path": "axes.X"}'`
+    (the request forms are in the README's control channel section)."""
     try:
         body = json.loads(request)
     except json.JSONDecodeError as exc:

@@ -8,9 +8,36 @@ move it explicitly, so runs are exact and deterministic).
 
 from __future__ import annotations
 
+import math
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+
+#: Device seconds per wall second. Beyond these the model cannot keep up (above) or a device second
+#: lasts for hours (below); NaN or infinity would make every deadline "now" and spin the loop.
+MIN_SCALE = 1e-3
+MAX_SCALE = 1e4
+#: The longest single `step` of device time: the models process every event due in between, so a
+#: bounded step keeps one step bounded in work (and float time keeps sub-microsecond resolution).
+MAX_STEP = 3600.0
+
+
+def check_scale(scale: float) -> float:
+    """`scale` if it is a finite number in [MIN_SCALE, MAX_SCALE]; else ValueError saying so."""
+    if isinstance(scale, bool) or not isinstance(scale, int | float) or not math.isfinite(scale):
+        raise ValueError(f"time scale must be a finite number, got {scale!r}")
+    if not MIN_SCALE <= scale <= MAX_SCALE:
+        raise ValueError(f"time scale must be between {MIN_SCALE:g} and {MAX_SCALE:g}, got {scale:g}")
+    return float(scale)
+
+
+def check_step(seconds: float) -> float:
+    """`seconds` if it is a finite number in [0, MAX_STEP]; else ValueError saying so."""
+    if isinstance(seconds, bool) or not isinstance(seconds, int | float) or not math.isfinite(seconds):
+        raise ValueError(f"step must be a finite number of seconds, got {seconds!r}")
+    if not 0 <= seconds <= MAX_STEP:
+        raise ValueError(f"step must be between 0 and {MAX_STEP:g} s, got {seconds:g}")
+    return float(seconds)
 
 
 class Clock(ABC):
@@ -41,10 +68,8 @@ class ScaledClock(Clock):
 
     def __init__(self, scale: float = 1.0, wall: Callable[[], float] = time.monotonic) -> None:
         super().__init__()
-        if scale <= 0:
-            raise ValueError(f"time scale must be > 0, got {scale}")
         self._wall = wall
-        self._scale = scale
+        self._scale = check_scale(scale)
         self._anchor_wall = wall()
         self._anchor_device = 0.0
         self._paused = False
@@ -72,8 +97,7 @@ class ScaledClock(Clock):
         self._anchor_wall = self._wall()
 
     def set_scale(self, scale: float) -> None:
-        if scale <= 0:
-            raise ValueError(f"time scale must be > 0, got {scale}")
+        scale = check_scale(scale)
         self._rebase()
         self._scale = scale
         self._changed()
@@ -90,8 +114,7 @@ class ScaledClock(Clock):
 
     def step(self, seconds: float) -> None:
         """Advance device time by `seconds` at once (meant for a paused clock)."""
-        if seconds < 0:
-            raise ValueError(f"cannot step time backwards ({seconds} s)")
+        seconds = check_step(seconds)
         self._rebase()
         self._anchor_device += seconds
         self._changed()

@@ -5,6 +5,7 @@ One request per line, one reply per request, replies in order:
     {"id": 1, "op": "list"}                                        -> devices and their ports
     {"id": 2, "device": "stage", "op": "snapshot", "path": "axes.X"}
     {"id": 3, "device": "stage", "get": "lcd"}                     -> a device observable
+    {"id": 3, "device": "stage", "op": "names"}                    -> its inputs and observables
     {"id": 4, "device": "stage", "in": "joystick", "x": 0.5}       -> a device input
     {"id": 5, "device": "stage", "op": "reset"}                    -> fresh model from the profile
     {"id": 6, "device": "stage", "op": "power_cycle"}
@@ -25,18 +26,24 @@ import json
 import logging
 import os
 import socket
+import stat
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from emulator.clock import ScaledClock
+from emulator.clock import ScaledClock, check_scale, check_step
 from emulator.device import ControlError
 from emulator.runner import DeviceRunner
+from emulator.runtime import SetupError, check_socket_path, socket_is_live
 
 log = logging.getLogger("stage_emu.control")
 
 MAX_REQUEST = 1 << 20
-FAULTS_HELP = "disconnect, hang, drop, corrupt, latency, clear"
+#: Connections served at once; more are told so and closed (each costs the daemon a descriptor).
+MAX_CLIENTS = 64
+#: Unsent event bytes a subscriber may have queued; past this its events are dropped (and counted)
+#: until it reads again, so a client that never reads cannot grow the daemon.
+SUBSCRIBER_BACKLOG = 64 * 1024
 
 
 class RequestError(Exception):
@@ -50,16 +57,26 @@ class ControlServer:
         self._clock = clock
         self._server: asyncio.AbstractServer | None = None
         self._subscribers: dict[str, set[asyncio.StreamWriter]] = {}
+        self._clients: set[asyncio.StreamWriter] = set()
+        #: events dropped per subscriber connection since it last kept up
+        self._dropped: dict[asyncio.StreamWriter, int] = {}
+        #: (st_dev, st_ino) of the socket this server bound: the only thing `stop` may remove
+        self._bound: tuple[int, int] | None = None
 
     async def start(self) -> None:
-        _clear_stale_socket(self.path)
+        check_socket_path(self.path, "--control")
+        _claim_socket_path(self.path)
         old_umask = os.umask(0o177)
         try:
             self._server = await asyncio.start_unix_server(
                 self._serve, path=str(self.path), limit=MAX_REQUEST
             )
+        except OSError as exc:
+            raise SetupError(f"--control {self.path}: cannot listen: {exc.strerror or exc}") from None
         finally:
             os.umask(old_umask)
+        info = self.path.lstat()
+        self._bound = (info.st_dev, info.st_ino)
         os.chmod(self.path, 0o600)
 
     async def stop(self) -> None:
@@ -67,19 +84,45 @@ class ControlServer:
             self._server.close()
             with contextlib.suppress(Exception):
                 await asyncio.wait_for(self._server.wait_closed(), 1.0)
-        with contextlib.suppress(FileNotFoundError):
-            self.path.unlink()
+        for writer in list(self._clients):
+            writer.close()
+        if self._bound is not None:
+            with contextlib.suppress(OSError):
+                info = self.path.lstat()
+                if (info.st_dev, info.st_ino) == self._bound:
+                    self.path.unlink()
+            self._bound = None
 
     def publish(self, device: str, event: dict[str, Any]) -> None:
-        """Push a device event to every connection subscribed to that device."""
+        """Push a device event to every connection subscribed to that device. A subscriber that does
+        not read loses events past SUBSCRIBER_BACKLOG; once it reads again it first gets
+        `{"ev": "dropped", "count": N}` for what it missed."""
         line = (json.dumps({**event, "device": device}) + "\n").encode()
         for writer in list(self._subscribers.get(device, ())):
             if writer.is_closing():
                 self._subscribers[device].discard(writer)
-            else:
-                writer.write(line)
+                continue
+            if writer.transport.get_write_buffer_size() > SUBSCRIBER_BACKLOG:
+                dropped = self._dropped.get(writer, 0)
+                if dropped == 0:
+                    log.warning("control: a subscriber to %s is not reading; dropping its events", device)
+                self._dropped[writer] = dropped + 1
+                continue
+            dropped = self._dropped.pop(writer, 0)
+            if dropped:
+                log.warning("control: a subscriber to %s caught up after %d dropped events", device, dropped)
+                notice = {"ev": "dropped", "device": device, "count": dropped}
+                writer.write((json.dumps(notice) + "\n").encode())
+            writer.write(line)
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        if len(self._clients) >= MAX_CLIENTS:
+            writer.write(_reply(None, error=f"too many control connections (at most {MAX_CLIENTS})"))
+            with contextlib.suppress(ConnectionError):
+                await writer.drain()
+            writer.close()
+            return
+        self._clients.add(writer)
         try:
             while True:
                 try:
@@ -96,12 +139,14 @@ class ControlServer:
         finally:
             for subscribers in self._subscribers.values():
                 subscribers.discard(writer)
+            self._dropped.pop(writer, None)
+            self._clients.discard(writer)
             writer.close()
 
     def handle_line(self, line: bytes, writer: asyncio.StreamWriter | None = None) -> bytes:
         try:
-            request = json.loads(line)
-        except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+            request = json.loads(line, parse_constant=_no_constant)
+        except ValueError as exc:  # bad JSON, bad UTF-8, NaN/Infinity
             return _reply(None, error=f"not a JSON object: {exc}")
         if not isinstance(request, dict):
             return _reply(None, error="a request must be a JSON object")
@@ -132,6 +177,8 @@ class ControlServer:
             return runner.call(lambda now: runner.device.observe(name, now))
         if op == "snapshot":
             return _at_path(runner.call(lambda now: runner.device.snapshot()), request.get("path"))
+        if op == "names":
+            return runner.device.control_names()
         if op == "reset":
             runner.reset()
             return True
@@ -148,7 +195,7 @@ class ControlServer:
             return True
         raise RequestError(
             f"unknown device request {op!r}; use 'in', 'get' or an op: "
-            "snapshot, reset, power_cycle, fault, subscribe, unsubscribe"
+            "snapshot, names, reset, power_cycle, fault, subscribe, unsubscribe"
         )
 
     def _global(self, op: Any, request: dict[str, Any]) -> Any:
@@ -156,10 +203,7 @@ class ControlServer:
             return [_describe(runner) for runner in self._runners.values()]
         if op == "clock":
             if "scale" in request:
-                scale = request["scale"]
-                if isinstance(scale, bool) or not isinstance(scale, int | float) or scale <= 0:
-                    raise RequestError(f"scale must be a number > 0, got {scale!r}")
-                self._clock.set_scale(float(scale))
+                self._clock.set_scale(check_scale(request["scale"]))
             return self._clock_state()
         if op == "pause":
             self._clock.pause()
@@ -168,10 +212,9 @@ class ControlServer:
             self._clock.resume()
             return self._clock_state()
         if op == "step":
-            seconds = request.get("seconds")
-            if isinstance(seconds, bool) or not isinstance(seconds, int | float) or seconds < 0:
-                raise RequestError(f"seconds must be a number >= 0, got {seconds!r}")
-            self._clock.step(float(seconds))
+            if "seconds" not in request:
+                raise RequestError("step needs 'seconds'")
+            self._clock.step(check_step(request["seconds"]))
             return self._clock_state()
         if op is None:
             raise RequestError("a request needs 'op' (list, clock, pause, resume, step) or a 'device'")
@@ -200,9 +243,16 @@ def _describe(runner: DeviceRunner) -> dict[str, Any]:
                 "host": ch.host.describe() if ch.host else None,
                 "timing": ch.timing,
                 "faults": ch.faults.describe(),
+                "stats": ch.stats.describe(),
             }
         )
-    return {"device": runner.name, "family": profile.family, "profile": profile.name, "ports": ports}
+    return {
+        "device": runner.name,
+        "family": profile.family,
+        "profile": profile.name,
+        "storage_error": runner.device.storage_error,
+        "ports": ports,
+    }
 
 
 def _name(value: Any, key: str) -> str:
@@ -235,18 +285,25 @@ def _reply(ident: Any, result: Any = None, error: str | None = None) -> bytes:
     return (json.dumps(body, default=str) + "\n").encode()
 
 
-def _clear_stale_socket(path: Path) -> None:
-    if not path.exists() and not path.is_symlink():
-        return
-    probe = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+def _no_constant(name: str) -> Any:
+    raise ValueError(f"{name} is not a number JSON allows")
+
+
+def _claim_socket_path(path: Path) -> None:
+    """Make room for the control socket: only a socket nobody listens on (a crashed daemon's) may
+    be removed; anything else at the path is refused."""
     try:
-        probe.connect(str(path))
-    except OSError:
-        path.unlink()
+        info = path.lstat()
+    except FileNotFoundError:
         return
-    finally:
-        probe.close()
-    raise RequestError(f"{path} is in use by a running stage-emu; stop it or pass --control another path")
+    if not stat.S_ISSOCK(info.st_mode):
+        raise SetupError(
+            f"--control {path} exists and is not a socket; refusing to replace it "
+            "(pass --control another path)"
+        )
+    if socket_is_live(path):
+        raise SetupError(f"{path} is in use by a running stage-emu; stop it or pass --control another path")
+    path.unlink()
 
 
 class ControlFailure(Exception):
@@ -322,6 +379,10 @@ class ControlClient:
     def input(self, device: str, input_name: str, /, **params: Any) -> Any:
         """Set a device input; positional-only so an input may itself take a `name` parameter."""
         return self.request({"device": device, "in": input_name, **params})
+
+    def names(self, device: str) -> dict[str, list[str]]:
+        """The device's input and observable names."""
+        return self.request({"device": device, "op": "names"})
 
     def snapshot(self, device: str, path: str | None = None) -> Any:
         return self.request({"device": device, "op": "snapshot", "path": path})

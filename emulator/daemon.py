@@ -2,18 +2,26 @@
 
 No polling anywhere: transports wake the loop on host activity, each device runner arms one timer
 for its next due event, and the control server waits on its socket. Readiness is one JSON line per
-port on stdout (and optionally a ready file); SIGINT/SIGTERM remove links and socket and exit 0.
+port on stdout (and optionally a ready file).
+
+Signals: SIGINT, SIGTERM, SIGHUP (the terminal that ran it closed) and SIGQUIT shut down cleanly
+(links, socket and ready file removed, logs flushed, exit 0); SIGUSR1 reopens the traffic log (log
+rotation); SIGUSR2 logs one status line per device. The daemon removes only what it created
+(emulator/runtime.py keeps the record).
 """
 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
 import logging
 import os
+import resource
 import signal
 import sys
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -24,8 +32,25 @@ from emulator.device import Device, HostServices
 from emulator.line import REALISTIC
 from emulator.rig import DeviceSpec, Rig
 from emulator.runner import DeviceRunner
+from emulator.runtime import (
+    LINK,
+    READY,
+    SOCKET,
+    Ownership,
+    SetupError,
+    check_output_path,
+    check_ready_file,
+    private_dir,
+    remove_ready_file,
+    runtime_dir,
+    write_private_atomic,
+)
 from emulator.trafficlog import TrafficLog
-from emulator.transports.pty import PtyTransport, runtime_dir
+from emulator.transports.pty import PtyTransport
+
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT)
+#: the same loop error is logged at most once per this many seconds (e.g. out of descriptors)
+ERROR_LOG_INTERVAL = 10.0
 
 log = logging.getLogger("stage_emu.daemon")
 
@@ -56,11 +81,17 @@ class Daemon:
         self.control: ControlServer | None = None
         self._traffic: TrafficLog | None = None
         self._stop = asyncio.Event()
+        self._ownership: Ownership | None = None
+        self._ready_written: tuple[int, int] | None = None
+        self._errors = _RateLimitedErrors()
 
     async def run(self) -> int:
         loop = asyncio.get_running_loop()
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            loop.add_signal_handler(sig, self._stop.set)
+        loop.set_exception_handler(self._errors.handle)
+        for sig in STOP_SIGNALS:
+            loop.add_signal_handler(sig, self._on_stop_signal, sig)
+        loop.add_signal_handler(signal.SIGUSR1, self._reopen_logs)
+        loop.add_signal_handler(signal.SIGUSR2, self._log_status)
         try:
             await self.start()
             await self._stop.wait()
@@ -71,16 +102,48 @@ class Daemon:
     def stop(self) -> None:
         self._stop.set()
 
+    def _on_stop_signal(self, sig: signal.Signals) -> None:
+        log.info("%s: shutting down", signal.Signals(sig).name)
+        self._stop.set()
+
+    def _reopen_logs(self) -> None:
+        if self._traffic is not None:
+            self._traffic.reopen()
+
+    def _log_status(self) -> None:
+        for name, runner in self.runners.items():
+            ports = ", ".join(
+                f"{ch.name}: {'attached' if ch.attached else 'idle'}" for ch in runner.channels.values()
+            )
+            log.warning("%s (%s): %s", name, runner.device.profile.name, ports)
+
     async def start(self) -> None:
         loop = asyncio.get_running_loop()
-        links = self.options.link_dir or runtime_dir()
+        _raise_descriptor_limit()
+        run_dir = runtime_dir()
+        self._ownership = Ownership(run_dir)
+        self._ownership.acquire()
+        links = private_dir(self.options.link_dir, "--link-dir") if self.options.link_dir else run_dir
+        ready_file = self.options.ready_file
+        if ready_file is not None:
+            ready_file = check_output_path(ready_file, "--ready-file")
+            check_ready_file(ready_file)
         if self.options.traffic_file is not None:
-            self._traffic = TrafficLog(self.options.traffic_file.open("a", encoding="utf-8"))
+            traffic = check_output_path(self.options.traffic_file, "--log-traffic")
+            try:
+                self._traffic = TrafficLog(traffic)
+            except OSError as exc:
+                raise SetupError(f"--log-traffic {traffic}: cannot open: {exc.strerror or exc}") from None
         state_dir = self.options.state_dir or default_state_dir()
         services = HostServices(state_dir=state_dir)
-        self.control = ControlServer(
-            self.options.control_path or runtime_dir() / "control.sock", self.runners, self.clock
+        control_path = (
+            check_output_path(self.options.control_path, "--control")
+            if self.options.control_path
+            else run_dir / "control.sock"
         )
+        self.control = ControlServer(control_path, self.runners, self.clock)
+        self._ownership.record(SOCKET, control_path)
+        await self.control.start()
         ready: list[dict[str, Any]] = []
         for spec in self.rig.devices:
             runner = DeviceRunner(
@@ -94,6 +157,7 @@ class Daemon:
             for port in spec.ports:
                 default = spec.name if port.channel == "main" else f"{spec.name}.{port.channel}"
                 link = port.link or links / default
+                self._ownership.record(LINK, link)
                 transport = PtyTransport(link, port.mode, loop)
                 timing = self.options.timing or port.timing or REALISTIC
                 runner.attach_transport(port.channel, transport, timing)
@@ -106,13 +170,14 @@ class Daemon:
                 }
                 ready.append(line)
             log.info("%s: %s (%s) ready", spec.name, spec.profile.name, spec.profile.description)
-        await self.control.start()
         # Announced only once everything, control socket included, is up: these are the signal.
-        if self.options.ready_file is not None:
-            _write_atomic(
-                self.options.ready_file,
-                json.dumps({"ports": ready, "control": str(self.control.path), "pid": os.getpid()}),
-            )
+        if ready_file is not None:
+            self._ownership.record(READY, ready_file, pid=os.getpid())
+            body = {"ports": ready, "control": str(self.control.path), "pid": os.getpid()}
+            try:
+                self._ready_written = write_private_atomic(ready_file, json.dumps(body) + "\n")
+            except OSError as exc:
+                raise SetupError(f"--ready-file {ready_file}: cannot write: {exc.strerror or exc}") from None
         for line in ready:
             self.out.write(json.dumps(line) + "\n")
         self.out.flush()
@@ -122,14 +187,18 @@ class Daemon:
             self.control.publish(device, event)
 
     async def shutdown(self) -> None:
+        """Undo what start did, each step on its own so one failure does not leave the rest behind."""
         for runner in self.runners.values():
-            runner.close()
+            _cleanup_step(f"closing {runner.name}", runner.close)
         if self.control is not None:
             await self.control.stop()
         if self._traffic is not None:
             self._traffic.close()
         if self.options.ready_file is not None:
-            self.options.ready_file.unlink(missing_ok=True)
+            path = self.options.ready_file.expanduser().absolute()
+            _cleanup_step("removing the ready file", lambda: remove_ready_file(path, self._ready_written))
+        if self._ownership is not None:
+            _cleanup_step("releasing the owner record", self._ownership.release)
 
 
 def _factory(spec: DeviceSpec, services: HostServices) -> Any:
@@ -142,10 +211,43 @@ def _factory(spec: DeviceSpec, services: HostServices) -> Any:
     return make
 
 
-def _write_atomic(path: Path, text: str) -> None:
-    tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "w", encoding="utf-8") as handle:
-        handle.write(text + "\n")
-        handle.flush()
-        os.fsync(handle.fileno())
-    os.replace(tmp, path)
+def _cleanup_step(what: str, action: Any) -> None:
+    try:
+        action()
+    except OSError as exc:
+        log.error("shutdown: %s failed: %s", what, exc)
+
+
+def _raise_descriptor_limit() -> None:
+    """Each port and control connection costs descriptors: use all the system grants us."""
+    soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
+    target = hard if hard != resource.RLIM_INFINITY else max(soft, 65536)
+    if soft < target:
+        with contextlib.suppress(ValueError, OSError):
+            resource.setrlimit(resource.RLIMIT_NOFILE, (target, hard))
+
+
+@dataclass
+class _RateLimitedErrors:
+    """The loop's exception handler: one line per kind of error per ERROR_LOG_INTERVAL, with a count
+    of the repeats it held back. Resource exhaustion (out of descriptors, memory) floods otherwise:
+    asyncio retries `accept` and logs a traceback each time."""
+
+    clock: Any = time.monotonic
+    _last: dict[str, tuple[float, int]] = field(default_factory=dict)
+
+    def handle(self, loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
+        exc = context.get("exception")
+        message = context.get("message", "error")
+        key = f"{message}|{type(exc).__name__}|{getattr(exc, 'errno', '')}"
+        now = self.clock()
+        last, held = self._last.get(key, (float("-inf"), 0))
+        if now - last < ERROR_LOG_INTERVAL:
+            self._last[key] = (last, held + 1)
+            return
+        self._last[key] = (now, 0)
+        repeats = f" (and {held} more like it)" if held else ""
+        if isinstance(exc, OSError):
+            log.error("%s: %s%s", message, exc, repeats)
+        else:
+            log.error("%s%s", message, repeats, exc_info=exc)

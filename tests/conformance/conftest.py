@@ -68,6 +68,8 @@ class Target:
     def close(self) -> None:
         for port in self._ports:
             port.close()
+        if self.control is not None:
+            self.control.close()  # the daemon serves a bounded number of control connections
 
 
 class DaemonPool:

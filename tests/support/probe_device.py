@@ -89,6 +89,9 @@ class ProbeDevice(Device):
         self._outbox.append(Emission(now, text.encode("latin-1")))
         return True
 
+    def control_names(self) -> dict[str, list[str]]:
+        return {"inputs": ["say"], "observables": sorted(self.snapshot())}
+
     def summarize(self, direction: str, data: bytes) -> str | None:
         return f"{direction} {data!r}"
 

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 from click.testing import CliRunner
 
 import tests.support.probe_device  # noqa: F401  (registers the `probe` family)
 from emulator.cli import main
+from emulator.profile import bundled_dir, display_path
 
 PROBE = str(Path(__file__).parent.parent / "support" / "probe.yaml")
 
@@ -91,3 +93,48 @@ def test_describe_marks_only_values_that_differ_from_their_default(tmp_path: Pat
     assert code == 0
     marked = [line.split()[0] for line in out.splitlines()[1:] if line.endswith("  *")]
     assert marked == ["line.baud"]
+
+
+def test_validate_reads_through_the_profile_reader(tmp_path: Path) -> None:
+    """A directory, a missing file and non-UTF-8 bytes: each its own line, exit 1, no traceback."""
+    latin1 = tmp_path / "latin1.yaml"
+    latin1.write_bytes(b"spec: 1\ndevice: probe\ndescription: caf\xe9\n")
+    code, _, err = run("validate", str(tmp_path), str(tmp_path / "none.yaml"), str(latin1))
+    assert code == 1
+    assert err.splitlines() == [
+        f"{tmp_path}: is a directory, not a file",
+        f"{tmp_path / 'none.yaml'}: does not exist",
+        f"{latin1}:3: not UTF-8 text, byte 38",
+    ]
+
+
+def test_describe_a_rig_names_its_profiles() -> None:
+    rig = bundled_dir() / "rig.yaml"
+    hint = "is a rig, not a profile; describe one of its profiles: mp285, ms2000"
+    for ref in (str(rig), "rig"):
+        code, _, err = run("describe", ref)
+        assert (code, err.strip()) == (1, f"stage-emu: {display_path(rig)} {hint}")
+
+
+def test_describe_columns_stay_aligned_with_long_values() -> None:
+    """The status template (95 characters) and list values must not push later columns."""
+    code, out, _ = run("describe", "mp285")
+    assert code == 0
+    _, listing, _ = run("describe", "mp285", "--json")
+    starts: list[set[int]] = [set(), set(), set()]
+    for line, row in zip(out.splitlines()[1:], json.loads(listing), strict=True):
+        default = row["default"] if str(row["default"]).startswith("(") else json.dumps(row["default"])
+        at = len(row["path"])
+        for column, cell in enumerate((json.dumps(row["value"]), f"default {default}", row["rule"])):
+            at = line.index(cell, at)
+            starts[column].add(at)
+            at += len(cell)
+    assert [len(s) for s in starts] == [1, 1, 1]
+
+
+def test_profiles_lists_every_bundled_profile() -> None:
+    code, out, _ = run("profiles")
+    assert code == 0
+    names = [line.split()[0] for line in out.splitlines()]
+    assert "mp285a-qr" in names and "rig" not in names
+    assert len({line.index(" mp285 ") for line in out.splitlines() if " mp285 " in line}) == 1

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from emulator.clock import ManualClock, ScaledClock
+from emulator.clock import MAX_SCALE, MAX_STEP, MIN_SCALE, ManualClock, ScaledClock
 
 
 class FakeWall:
@@ -71,3 +71,31 @@ def test_pause_step_resume() -> None:
         clock.step(-1)
     with pytest.raises(ValueError):
         clock.set_scale(0)
+
+
+@pytest.mark.parametrize("scale", [float("nan"), float("inf"), -float("inf"), 1e300, 0, -1, 1e-9, True, "2"])
+def test_scale_must_be_finite_and_in_range(scale: object) -> None:
+    clock = ScaledClock(1.0)
+    with pytest.raises(ValueError, match="time scale must be"):
+        clock.set_scale(scale)  # type: ignore[arg-type]
+    with pytest.raises(ValueError, match="time scale must be"):
+        ScaledClock(scale)  # type: ignore[arg-type]
+    assert clock.scale == 1.0
+
+
+@pytest.mark.parametrize("seconds", [float("nan"), float("inf"), 1e300, MAX_STEP + 1, -0.5])
+def test_step_must_be_finite_and_in_range(seconds: float) -> None:
+    clock = ScaledClock(1.0)
+    clock.pause()
+    before = clock.now()
+    with pytest.raises(ValueError, match="step must be"):
+        clock.step(seconds)
+    assert clock.now() == before
+
+
+def test_scale_and_step_limits_are_inclusive() -> None:
+    clock = ScaledClock(MAX_SCALE)
+    clock.set_scale(MIN_SCALE)
+    clock.pause()
+    clock.step(MAX_STEP)
+    assert clock.now() >= MAX_STEP

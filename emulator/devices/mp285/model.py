@@ -63,6 +63,8 @@ INTERRUPTED_REPLIES = {
     "error8": proto.error_reply(ErrorCode.MOVE_INTERRUPTED),
     "error8_4": proto.error_reply(proto.combine_errors(ErrorCode.MOVE_INTERRUPTED, ErrorCode.BAD_COMMAND)),
 }
+#: control-channel inputs (`ctl input`), see docs/mp285.md
+INPUTS = ("crash", "power_cycle", "roe", "set_line")
 #: stands in held input for the `error8_4` drop of the frame being parsed, so that the drop is
 #: replayed in its turn (MP-53, MP-52)
 ABANDON_FRAME = (-1, False)
@@ -331,7 +333,10 @@ class Mp285Device(Device):
             return self._roe(params, now)
         if name == "set_line":
             return self._set_line(params, now)
-        raise ControlError(f"{self.name}: no input {name!r}; known: crash, power_cycle, roe, set_line")
+        raise ControlError(f"{self.name}: no input {name!r}; known: {', '.join(INPUTS)}")
+
+    def control_names(self) -> dict[str, list[str]]:
+        return {"inputs": list(INPUTS), "observables": sorted(self.snapshot())}
 
     def summarize(self, direction: str, data: bytes) -> str | None:
         """Host bytes are read from command position; device bytes, paced out one at a time, are

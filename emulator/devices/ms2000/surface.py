@@ -87,11 +87,15 @@ class ControlSurfaceMixin:
         else:
             module = next((m for m in self.modules.values() if name in m.inputs), None)
             if module is None:
-                known = sorted({*self._inputs(), *(i for m in self.modules.values() for i in m.inputs)})
+                known = self.control_names()["inputs"]
                 raise ControlError(f"{self.name}: no input {name!r}; known: {', '.join(known)}")
             result = module.control_input(name, params, now)
         self.scheduler.run_due(now)
         return result
+
+    def control_names(self) -> dict[str, list[str]]:
+        inputs = {*self._inputs(), *(i for m in self.modules.values() for i in m.inputs)}
+        return {"inputs": sorted(inputs), "observables": sorted(self._observables())}
 
     def _inputs(self) -> dict[str, Callable[[dict[str, Any], float], Any]]:
         return {

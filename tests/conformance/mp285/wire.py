@@ -20,8 +20,6 @@ Three ways a test meets time:
 
 from __future__ import annotations
 
-import os
-import select
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -273,30 +271,18 @@ class DaemonLog:
     """The warnings a daemon writes to its stderr (MP-5), read without blocking."""
 
     daemon: RunningDaemon
-    _buffer: bytes = field(default=b"", repr=False)
-
-    def _fd(self) -> int:
-        assert self.daemon.proc.stderr is not None
-        return self.daemon.proc.stderr.fileno()
+    _seen: int = field(default=0, repr=False)
 
     def drain(self) -> list[str]:
-        """Lines written so far."""
-        while select.select([self._fd()], [], [], 0)[0]:
-            chunk = os.read(self._fd(), 65536)
-            if not chunk:
-                break
-            self._buffer += chunk
-        *lines, rest = self._buffer.split(b"\n")
-        self._buffer = rest
-        return [line.decode() for line in lines]
+        """Lines written since the last call."""
+        with self.daemon.log.changed:
+            lines = self.daemon.log.lines[self._seen :]
+        self._seen += len(lines)
+        return lines
 
     def wait_line(self, needle: str, timeout: float = 2.0) -> str:
         """The next line containing `needle`."""
-        deadline = time.monotonic() + timeout
-        while True:
-            for line in self.drain():
-                if needle in line:
-                    return line
-            remaining = deadline - time.monotonic()
-            assert remaining > 0, f"no log line with {needle!r} within {timeout} s"
-            select.select([self._fd()], [], [], remaining)
+        found = self.daemon.log.wait_line(needle, self._seen, timeout)
+        assert found is not None, f"no log line with {needle!r} within {timeout} s"
+        self._seen = found[0] + 1
+        return found[1]

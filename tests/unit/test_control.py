@@ -1,0 +1,147 @@
+"""Control server edge cases: numbers that would wedge the clock, slow subscribers, connection cap,
+and the daemon's rate-limited loop error handler."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import logging
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from emulator.clock import ScaledClock
+from emulator.control import MAX_CLIENTS, SUBSCRIBER_BACKLOG, ControlServer
+from emulator.daemon import ERROR_LOG_INTERVAL, _RateLimitedErrors
+from emulator.trafficlog import TrafficLog
+
+
+def reply(server: ControlServer, request: str) -> dict[str, Any]:
+    return json.loads(server.handle_line(request.encode()))
+
+
+@pytest.mark.parametrize(
+    "request_line",
+    [
+        '{"op": "clock", "scale": NaN}',
+        '{"op": "clock", "scale": Infinity}',
+        '{"op": "step", "seconds": -Infinity}',
+    ],
+)
+def test_non_finite_json_constants_are_refused(request_line: str) -> None:
+    server = ControlServer(Path("unused"), {}, ScaledClock())
+    answer = reply(server, request_line)
+    assert answer["ok"] is False and "not a number JSON allows" in answer["error"]
+
+
+@pytest.mark.parametrize(
+    ("request_line", "message"),
+    [
+        ('{"op": "clock", "scale": 1e300}', "time scale must be between"),
+        ('{"op": "clock", "scale": 0}', "time scale must be between"),
+        ('{"op": "clock", "scale": "fast"}', "time scale must be a finite number"),
+        ('{"op": "step", "seconds": 1e300}', "step must be between"),
+        ('{"op": "step"}', "step needs 'seconds'"),
+    ],
+)
+def test_clock_numbers_are_range_checked(request_line: str, message: str) -> None:
+    clock = ScaledClock()
+    server = ControlServer(Path("unused"), {}, clock)
+    answer = reply(server, request_line)
+    assert answer["ok"] is False and message in answer["error"]
+    assert clock.scale == 1.0
+
+
+class FakeTransport:
+    def __init__(self) -> None:
+        self.buffered = 0
+
+    def get_write_buffer_size(self) -> int:
+        return self.buffered
+
+
+class FakeWriter:
+    """A subscriber connection whose peer reads only when the test says so."""
+
+    def __init__(self) -> None:
+        self.transport = FakeTransport()
+        self.lines: list[dict[str, Any]] = []
+
+    def is_closing(self) -> bool:
+        return False
+
+    def write(self, data: bytes) -> None:
+        self.transport.buffered += len(data)
+        self.lines.append(json.loads(data))
+
+    def read_all(self) -> list[dict[str, Any]]:
+        self.transport.buffered = 0
+        lines, self.lines = self.lines, []
+        return lines
+
+
+def test_a_subscriber_that_never_reads_is_bounded_and_told_what_it_missed(caplog) -> None:
+    server = ControlServer(Path("unused"), {}, ScaledClock())
+    writer = FakeWriter()
+    server._subscribers["stage"] = {writer}  # type: ignore[dict-item]
+    with caplog.at_level(logging.WARNING, "stage_emu.control"):
+        for i in range(20000):
+            server.publish("stage", {"ev": "tick", "i": i})
+    assert writer.transport.buffered <= SUBSCRIBER_BACKLOG + 200
+    kept = writer.read_all()
+    server.publish("stage", {"ev": "tick", "i": "last"})
+    after = writer.read_all()
+    assert after[0] == {"ev": "dropped", "device": "stage", "count": 20000 - len(kept)}
+    assert after[1]["i"] == "last"
+    assert [r.message for r in caplog.records].count(
+        "control: a subscriber to stage is not reading; dropping its events"
+    ) == 1
+
+
+def test_connections_beyond_the_cap_are_refused_with_a_sentence(tmp_path: Path) -> None:
+    path = tmp_path / "c.sock"
+
+    async def scenario() -> None:
+        server = ControlServer(path, {}, ScaledClock())
+        await server.start()
+        held = [await asyncio.open_unix_connection(str(path)) for _ in range(MAX_CLIENTS)]
+        for reader, writer in held[:1]:
+            writer.write(b'{"op": "list"}\n')
+            assert json.loads(await reader.readline())["ok"] is True
+        reader, writer = await asyncio.open_unix_connection(str(path))
+        answer = json.loads(await reader.readline())
+        assert answer["ok"] is False and "too many control connections" in answer["error"]
+        assert await reader.read() == b""
+        for _, w in held:
+            w.close()
+        await server.stop()
+
+    asyncio.run(scenario())
+
+
+def test_loop_errors_are_logged_once_per_interval_with_a_count(caplog) -> None:
+    now = [0.0]
+    handler = _RateLimitedErrors(clock=lambda: now[0])
+    error = OSError(24, "Too many open files")
+    with caplog.at_level(logging.ERROR, "stage_emu.daemon"):
+        for _ in range(1000):
+            handler.handle(None, {"message": "socket.accept() out of system resource", "exception": error})  # type: ignore[arg-type]
+        now[0] += ERROR_LOG_INTERVAL
+        handler.handle(None, {"message": "socket.accept() out of system resource", "exception": error})  # type: ignore[arg-type]
+    messages = [r.getMessage() for r in caplog.records]
+    assert len(messages) == 2
+    assert "Too many open files" in messages[0] and "999 more like it" in messages[1]
+    assert all(r.exc_info is None for r in caplog.records)  # no traceback for resource errors
+
+
+def test_traffic_log_write_failure_is_logged_once_and_logging_stops(caplog) -> None:
+    traffic = TrafficLog(Path("/dev/full"))
+    with caplog.at_level(logging.ERROR, "stage_emu.traffic"):
+        for _ in range(100):
+            traffic.record(0.0, "stage", "main", "rx", b"W X\r", None)
+    assert not traffic.active
+    assert len(caplog.records) == 1 and "traffic logging stopped" in caplog.records[0].getMessage()
+    traffic.reopen()
+    assert traffic.active
+    traffic.close()
