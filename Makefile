@@ -9,14 +9,17 @@ ARGS ?=
 
 venv: $(STAMP)
 
+# Setup is quiet: one line, and pip's full output only if it fails (it stays in .venv/setup.log).
 $(STAMP): pyproject.toml
-	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test]'
-	touch $(STAMP)
+	@echo "stage-emu: setting up .venv (first run, or pyproject.toml changed)..." >&2
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	@( $(BIN)/python -m pip install --disable-pip-version-check --upgrade pip \
+	  && $(BIN)/python -m pip install --disable-pip-version-check -e '.[test]' ) > $(VENV)/setup.log 2>&1 \
+	  || { cat $(VENV)/setup.log >&2; echo "stage-emu: setup failed (log above, also in $(VENV)/setup.log)" >&2; exit 1; }
+	@touch $(STAMP)
 
 run: $(STAMP)
-	$(BIN)/stage-emu serve $(ARGS)
+	@$(BIN)/stage-emu serve $(ARGS)
 
 test: $(STAMP)
 	$(BIN)/ruff check .
@@ -25,11 +28,11 @@ test: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python scripts/bench.py $(ARGS)
 
-# long randomized fuzzing of both device models (EXAMPLES per property; `make test` runs a fixed set)
-EXAMPLES ?= 3000
+# the torture suite: every attack at full length, a table of figures, exit 1 past a bound; EXAMPLES
+# randomized hypothesis examples per model property (`make test` runs short fixed forms of each)
+EXAMPLES ?= 10000
 soak: $(STAMP)
-	STAGE_EMU_SOAK_EXAMPLES=$(EXAMPLES) $(BIN)/python -m pytest -q -p no:cacheprovider \
-		tests/unit/mp285/test_mp285_fuzz.py tests/unit/ms2000/test_fuzz.py $(ARGS)
+	$(BIN)/python scripts/torture.py --examples $(EXAMPLES) $(ARGS)
 
 lint: $(STAMP)
 	$(BIN)/ruff check .

@@ -1,0 +1,232 @@
+"""The torture suite's attacks. Each starts its own daemon, attacks it, measures it from outside and
+returns an `Outcome`: figures, and the bounds it exceeded (none = passed).
+
+Bounds (issue "Hardening"): a flood of random bytes into every port grows the daemon by < 10 MB and
+keeps the other ports' p99 within 1.2x idle; open/close cycles leave fds and RSS flat and no CPU
+use after; a subscriber that never reads costs a bounded amount of memory.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import random
+import select
+import signal
+import struct
+import termios
+import time
+import tty
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import serial
+
+from emulator.launcher import RunningDaemon, start_daemon
+from scripts.soak.probes import cpu_percent, fd_count, round_trips, rss_mb, settle
+
+MEASURED = "measured"
+W_X = (b"W X\r", b":A 0\r\n")
+#: growth allowed while attacked, in MB
+RSS_GROWTH_MB = 10.0
+P99_RATIO = 1.2
+#: an idle daemon's CPU use (percent of one core) that still counts as idle
+IDLE_CPU_PERCENT = 1.0
+
+
+@dataclass
+class Outcome:
+    attack: str
+    figures: dict[str, Any] = field(default_factory=dict)
+    exceeded: list[str] = field(default_factory=list)
+
+    @property
+    def passed(self) -> bool:
+        return not self.exceeded
+
+    def bound(self, ok: bool, text: str) -> None:
+        if not ok:
+            self.exceeded.append(text)
+
+
+def _rig(workdir: Path, devices: list[tuple[str, str]], timing: str) -> Path:
+    workdir.mkdir(parents=True, exist_ok=True)
+    lines = ["spec: 1", "devices:"]
+    for name, profile in devices:
+        lines += [f"  - name: {name}", f"    profile: {profile}", f"    ports: [{{timing: {timing}}}]"]
+    path = workdir / "rig.yaml"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _start(workdir: Path, devices: list[tuple[str, str]], timing: str, *extra: str) -> RunningDaemon:
+    return start_daemon(workdir, [str(_rig(workdir, devices, timing)), *extra], expect_ports=len(devices))
+
+
+def _flood(paths: list[str], seconds: float, seed: int, counter: Any) -> None:
+    """Child process: write random bytes at full speed into every port, never reading."""
+    rng = random.Random(seed)
+    fds = []
+    for path in paths:
+        fd = os.open(path, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+        tty.setraw(fd)
+        attrs = termios.tcgetattr(fd)
+        attrs[4] = attrs[5] = termios.B9600
+        termios.tcsetattr(fd, termios.TCSANOW, attrs)
+        fds.append(fd)
+    chunk = rng.randbytes(4096)
+    end = time.monotonic() + seconds
+    written = 0
+    while (left := end - time.monotonic()) > 0:
+        _, ready, _ = select.select([], fds, [], left)
+        for fd in ready:
+            try:
+                written += os.write(fd, chunk)
+            except BlockingIOError:
+                continue
+    counter.value = written
+    for fd in fds:
+        os.close(fd)
+
+
+def flood(workdir: Path, seconds: float = 60.0, flooded: int = 6, idle_trips: int = 300) -> Outcome:
+    """Random bytes at full speed into `flooded` realistic 9600-baud ports (MP-285s and MS2000s)
+    while a host does `W X` round trips on another MS2000 port of the same daemon."""
+    out = Outcome("flood: random bytes at full speed into every port")
+    devices = [(MEASURED, "ms2000")] + [(f"flood{i}", "ms2000" if i % 2 else "mp285") for i in range(flooded)]
+    daemon = _start(workdir, devices, "realistic")
+    try:
+        pid = daemon.proc.pid
+        with serial.Serial(daemon.port(MEASURED), 9600, timeout=5) as port:
+            idle = round_trips(port, *W_X, count=idle_trips)
+            before = rss_mb(pid)
+            counter = multiprocessing.Value("q", 0)
+            paths = [daemon.port(name) for name, _ in devices[1:]]
+            attacker = multiprocessing.Process(target=_flood, args=(paths, seconds, 2026, counter))
+            attacker.start()
+            busy = round_trips(port, *W_X, count=idle_trips, until=time.monotonic() + seconds)
+            attacker.join()
+            after = rss_mb(pid)
+            still = round_trips(port, *W_X, count=10)
+        out.figures.update(
+            ports=flooded,
+            seconds=seconds,
+            bytes_accepted=counter.value,
+            rss_before_mb=before,
+            rss_after_mb=after,
+            idle_p99_ms=idle.p99,
+            flood_p99_ms=busy.p99,
+            p99_ratio=busy.p99 / idle.p99,
+            cpu_after_percent=cpu_percent(pid, 2.0),
+        )
+        # what the wires carry at 960 characters/s, plus what kernel buffers absorb (< 1 MiB a port)
+        wire = flooded * (seconds * 960 + (1 << 20))
+        out.bound(counter.value < wire, "host writes are not held to the wire rate")
+        out.bound(after - before < RSS_GROWTH_MB, f"RSS grew by >= {RSS_GROWTH_MB} MB")
+        out.bound(busy.p99 <= P99_RATIO * idle.p99, f"other port's p99 > {P99_RATIO}x idle")
+        out.bound(bool(still.samples), "measured port stopped answering")
+    finally:
+        daemon.stop()
+    out.bound(daemon.proc.returncode == 0, "daemon did not exit 0")
+    return out
+
+
+def open_close(workdir: Path, cycles: int = 10_000) -> Outcome:
+    """Open and close every port `cycles` times, as a host program restarting over and over."""
+    out = Outcome("open/close cycles per port")
+    devices = [("mp", "mp285"), ("ms", "ms2000")]
+    daemon = _start(workdir, devices, "fast")
+    try:
+        pid = daemon.proc.pid
+        client = daemon.control()
+        for name, _ in devices:  # warm up: first attach allocates what every later one reuses
+            with serial.Serial(daemon.port(name), 9600, timeout=2):
+                pass
+            settle(client, name)
+        fds, rss = fd_count(pid), rss_mb(pid)
+        for _ in range(cycles):
+            for name, _ in devices:
+                with serial.Serial(daemon.port(name), 9600, timeout=2):
+                    pass
+        for name, _ in devices:
+            settle(client, name)
+        with serial.Serial(daemon.port("ms"), 9600, timeout=2) as port:
+            round_trips(port, *W_X, count=3)
+        settle(client, "ms")
+        out.figures.update(
+            cycles_per_port=cycles,
+            fds_before=fds,
+            fds_after=fd_count(pid),
+            rss_before_mb=rss,
+            rss_after_mb=rss_mb(pid),
+            cpu_after_percent=cpu_percent(pid, 2.0),
+        )
+        out.bound(out.figures["fds_after"] == fds, "descriptors leaked")
+        out.bound(out.figures["rss_after_mb"] - rss < 2.0, "RSS grew by >= 2 MB")
+        out.bound(out.figures["cpu_after_percent"] < IDLE_CPU_PERCENT, "CPU used after the cycles")
+    finally:
+        daemon.stop()
+    return out
+
+
+def _mover(path: str, seconds: float, counter: Any) -> None:
+    """Child process: make an MP-285 move back and forth as fast as it answers (two events a move)."""
+    moves = 0
+    end = time.monotonic() + seconds
+    with serial.Serial(path, 9600, timeout=5) as port:
+        while time.monotonic() < end:
+            port.write(b"m" + struct.pack("<3i", 200 * (moves % 2), 0, 0) + b"\r")
+            if port.read(1) != b"\r":
+                raise AssertionError("move not acknowledged")
+            moves += 1
+    counter.value = moves
+
+
+def slow_subscriber(workdir: Path, seconds: float = 60.0, devices: int = 3) -> Outcome:
+    """A control client subscribes to `devices` MP-285s and never reads while hosts make them move
+    as fast as they answer, at the highest time scale."""
+    out = Outcome("control subscriber that never reads")
+    names = [f"mp{i}" for i in range(devices)]
+    daemon = _start(workdir, [(n, "mp285") for n in names], "fast", "--time-scale", "10000")
+    try:
+        pid = daemon.proc.pid
+        silent = daemon.control()
+        for name in names:
+            silent.subscribe(name)  # and never reads again
+        before = rss_mb(pid)
+        counters = [multiprocessing.Value("q", 0) for _ in names]
+        hosts = [
+            multiprocessing.Process(target=_mover, args=(daemon.port(n), seconds, c))
+            for n, c in zip(names, counters, strict=True)
+        ]
+        for host in hosts:
+            host.start()
+        for host in hosts:
+            host.join()
+        after = rss_mb(pid)
+        listing = daemon.control().list()
+        out.figures.update(
+            seconds=seconds,
+            events_published=2 * sum(c.value for c in counters),
+            rss_before_mb=before,
+            rss_after_mb=after,
+        )
+        out.bound(after - before < RSS_GROWTH_MB, f"RSS grew by >= {RSS_GROWTH_MB} MB")
+        out.bound([d["device"] for d in listing] == names, "control channel stopped answering")
+    finally:
+        daemon.stop()
+    return out
+
+
+def stop_signals(workdir: Path) -> Outcome:
+    """Every terminating signal gives a clean exit 0 with links and socket removed."""
+    out = Outcome("terminating signals")
+    for sig in (signal.SIGHUP, signal.SIGINT, signal.SIGTERM, signal.SIGQUIT):
+        daemon = _start(workdir / sig.name, [("ms", "ms2000")], "fast")
+        link = Path(daemon.port("ms"))
+        code = daemon.stop(sig)
+        clean = code == 0 and not os.path.lexists(link) and not daemon.control_path.exists()
+        out.figures[sig.name] = "clean" if clean else f"exit {code}"
+        out.bound(clean, f"{sig.name} did not shut down cleanly")
+    return out

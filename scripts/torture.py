@@ -1,0 +1,151 @@
+"""Torture suite: attack daemons the way hostile or broken hosts do, print a table of figures, exit 1
+when a bound is exceeded (`make soak`; short forms of each attack run in `make test`).
+
+    python scripts/torture.py [--quick] [--only ATTACK ...] [--examples N] [--json FILE]
+
+Attacks: flood (random bytes at full speed into every port), cycles (open/close every port),
+kill (kill -9 during `SS Z`, restart), subscriber (control client that never reads), signals,
+profiles (the hostile-profile corpus through `stage-emu validate`), fuzz (hypothesis examples per
+protocol model).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from scripts.soak import attacks  # noqa: E402
+from scripts.soak.attacks import Outcome  # noqa: E402
+from scripts.soak.hostile_profiles import write_cases  # noqa: E402
+from scripts.soak.kill_save import kill_during_save  # noqa: E402
+from scripts.soak.probes import figure  # noqa: E402
+
+FUZZ_FILES = ("tests/unit/mp285/test_mp285_fuzz.py", "tests/unit/ms2000/test_fuzz.py")
+#: a hostile profile must be refused within this much wall time and memory
+PROFILE_SECONDS = 1.0
+PROFILE_RSS_MB = 100.0
+
+
+def hostile_profiles(workdir: Path) -> Outcome:
+    """Each case of the corpus through `stage-emu validate`: a one-line error, fast, small."""
+    out = Outcome("hostile profiles through `stage-emu validate`")
+    workdir.mkdir(parents=True, exist_ok=True)
+    slowest, largest = 0.0, 0.0
+    cases = write_cases(workdir)
+    for name, path, expected in cases:
+        code, stderr, took, rss = _validate(path)
+        slowest, largest = max(slowest, took), max(largest, rss)
+        lines = stderr.strip().splitlines()
+        out.bound(code == 1, f"{name}: exit {code}")
+        out.bound(len(lines) == 1 and expected in stderr, f"{name}: not one line with {expected!r}")
+        out.bound(took < PROFILE_SECONDS, f"{name}: took {took:.2f} s")
+        out.bound(rss < PROFILE_RSS_MB, f"{name}: {rss:.0f} MB")
+    out.figures.update(cases=len(cases), slowest_s=slowest, max_rss_mb=largest)
+    return out
+
+
+def _validate(path: Path) -> tuple[int, str, float, float]:
+    """`stage-emu validate PATH`: exit code, stderr, wall seconds and peak RSS (MB) of that child."""
+    with tempfile.TemporaryFile("w+") as err:
+        start = time.monotonic()
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "emulator.cli", "validate", str(path)],
+            stdout=subprocess.DEVNULL,
+            stderr=err,
+            cwd=ROOT,
+        )
+        watchdog = threading.Timer(60, proc.kill)  # a hang is a failure, not a stuck soak
+        watchdog.start()
+        _, status, usage = os.wait4(proc.pid, 0)  # per-child peak memory, which Popen.wait drops
+        watchdog.cancel()
+        took = time.monotonic() - start
+        proc.returncode = os.waitstatus_to_exitcode(status)
+        err.seek(0)
+        return proc.returncode, err.read(), took, usage.ru_maxrss / 1024
+
+
+def fuzz(examples: int) -> Outcome:
+    out = Outcome(f"hypothesis examples per protocol model ({examples})")
+    start = time.monotonic()
+    result = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *FUZZ_FILES],
+        cwd=ROOT,
+        env={**os.environ, "STAGE_EMU_SOAK_EXAMPLES": str(examples)},
+        capture_output=True,
+        text=True,
+    )
+    summary = (result.stdout.strip().splitlines() or ["no output"])[-1]
+    out.figures.update(examples=examples, minutes=(time.monotonic() - start) / 60, pytest=summary)
+    out.bound(result.returncode == 0, f"fuzz failed: {summary}")
+    return out
+
+
+def kill(workdir: Path, cycles: int) -> Outcome:
+    out = Outcome("kill -9 during `SS Z`, then restart")
+    try:
+        figures = kill_during_save(cycles, workdir / "state", workdir=workdir / "runs")
+    except AssertionError as exc:
+        out.exceeded.append(str(exc))
+        return out
+    out.figures.update(figures)
+    return out
+
+
+def plan(args: argparse.Namespace, work: Path) -> dict[str, Callable[[], Outcome]]:
+    quick = args.quick
+    return {
+        "flood": lambda: attacks.flood(work / "flood", seconds=5 if quick else 60),
+        "cycles": lambda: attacks.open_close(work / "cycles", cycles=300 if quick else 10_000),
+        "kill": lambda: kill(work / "kill", cycles=10 if quick else 1000),
+        "subscriber": lambda: attacks.slow_subscriber(work / "subscriber", seconds=5 if quick else 60),
+        "signals": lambda: attacks.stop_signals(work / "signals"),
+        "profiles": lambda: hostile_profiles(work / "profiles"),
+        "fuzz": lambda: fuzz(200 if quick else args.examples),
+    }
+
+
+def table(outcomes: list[Outcome]) -> str:
+    rows = [("attack", "figures", "outcome")]
+    for out in outcomes:
+        figures = ", ".join(f"{k} {figure(v)}" for k, v in out.figures.items())
+        rows.append((out.attack, figures, "pass" if out.passed else "FAIL: " + "; ".join(out.exceeded)))
+    return "\n".join(f"| {' | '.join(row)} |" for row in [rows[0], ("---",) * 3, *rows[1:]])
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="seconds, not minutes: a smoke run")
+    parser.add_argument("--only", nargs="+", metavar="ATTACK", help="run only these attacks")
+    parser.add_argument("--examples", type=int, default=10_000, help="hypothesis examples per model")
+    parser.add_argument("--json", type=Path, help="also write the outcomes here")
+    args = parser.parse_args()
+    with tempfile.TemporaryDirectory(prefix="stage-emu-torture-") as tmp:
+        steps = plan(args, Path(tmp))
+        unknown = set(args.only or ()) - set(steps)
+        if unknown:
+            parser.error(f"unknown attack(s) {', '.join(sorted(unknown))}; known: {', '.join(steps)}")
+        outcomes = []
+        for name, run in steps.items():
+            if args.only and name not in args.only:
+                continue
+            print(f"torture: {name}...", file=sys.stderr, flush=True)
+            outcomes.append(run())
+    print(table(outcomes))
+    if args.json:
+        args.json.write_text(json.dumps([o.__dict__ for o in outcomes], indent=1, default=str) + "\n")
+    return 0 if all(o.passed for o in outcomes) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

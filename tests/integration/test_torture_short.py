@@ -1,0 +1,30 @@
+"""Short fixed forms of the torture suite's attacks (scripts/torture.py runs them at full length).
+
+Timing ratios are figures of the soak run, not assertions here: a shared CI machine would make them
+flaky. What is asserted is what must hold on any machine: bounded memory, no leaked descriptors,
+correct answers during and after the attack."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from scripts.soak import attacks
+
+
+def test_flood_of_random_bytes_is_held_to_the_wire_rate(tmp_path: Path) -> None:
+    out = attacks.flood(tmp_path, seconds=3, flooded=3, idle_trips=50)
+    timing = {f"other port's p99 > {attacks.P99_RATIO}x idle"}
+    assert set(out.exceeded) <= timing, out.figures
+    assert out.figures["rss_after_mb"] - out.figures["rss_before_mb"] < attacks.RSS_GROWTH_MB
+
+
+def test_open_close_cycles_leak_nothing(tmp_path: Path) -> None:
+    out = attacks.open_close(tmp_path, cycles=150)
+    assert out.figures["fds_after"] == out.figures["fds_before"], out.figures
+    assert out.figures["rss_after_mb"] - out.figures["rss_before_mb"] < 2.0, out.figures
+
+
+def test_subscriber_that_never_reads_costs_bounded_memory(tmp_path: Path) -> None:
+    out = attacks.slow_subscriber(tmp_path, seconds=3)
+    assert out.passed, (out.exceeded, out.figures)
+    assert out.figures["events_published"] > 100, out.figures
