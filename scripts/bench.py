@@ -27,7 +27,7 @@ import serial
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.support.daemon import start_daemon  # noqa: E402
+from emulator.launcher import start_daemon  # noqa: E402
 
 
 @dataclass(frozen=True)
