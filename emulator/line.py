@@ -10,9 +10,9 @@ once. All times are device seconds (emulator/clock.py).
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
-from emulator.device import LineSettings
+from emulator.device import HostLine, LineSettings
 
 REALISTIC = "realistic"
 FAST = "fast"
@@ -31,14 +31,10 @@ def char_time(baud: int, data_bits: int = 8, parity: str = "none", stop_bits: fl
     return bits_per_char(data_bits, parity, stop_bits) / baud
 
 
-def settings_char_time(settings: LineSettings, fallback: LineSettings) -> float:
+def settings_char_time(settings: HostLine, fallback: LineSettings) -> float:
     """Character time of `settings`, taking what a transport cannot see (None) from `fallback`."""
-
-    def pick(name: str) -> object:
-        value = getattr(settings, name)
-        return getattr(fallback, name) if value is None else value
-
-    return char_time(pick("baud"), pick("data_bits"), pick("parity"), pick("stop_bits"))  # type: ignore[arg-type]
+    line = settings.filled(fallback)
+    return char_time(line.baud, line.data_bits, line.parity, line.stop_bits)  # type: ignore[arg-type]
 
 
 @dataclass
@@ -123,13 +119,7 @@ class Pacer:
         return self._size
 
 
-def mismatches(device: LineSettings, host: LineSettings) -> list[str]:
-    """Names of the settings in which a host visibly differs from the device (None = not visible)."""
-    names = ("baud", "data_bits", "parity", "stop_bits", "rtscts", "xonxoff")
-    return [
-        name
-        for name in names
-        if getattr(host, name) is not None
-        and getattr(device, name) is not None
-        and getattr(host, name) != getattr(device, name)
-    ]
+def mismatches(device: LineSettings, host: HostLine) -> list[str]:
+    """Names of the settings in which a host visibly differs from the device (unseen ones match)."""
+    in_effect = host.filled(device)
+    return [f.name for f in fields(device) if getattr(in_effect, f.name) != getattr(device, f.name)]

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from emulator.clock import Clock
-from emulator.device import Device, Emission, LineSettings
+from emulator.device import Device, Emission, HostLine
 from emulator.line import REALISTIC, Pacer, mismatches, settings_char_time
 from emulator.trafficlog import TrafficLog
 from emulator.transports.base import Transport
@@ -98,7 +98,7 @@ class Channel:
     timing: str = REALISTIC
     transport: Transport | None = None
     attached: bool = False
-    host: LineSettings | None = None
+    host: HostLine | None = None
     to_host: Pacer = field(default_factory=Pacer)
     from_host: Pacer = field(default_factory=Pacer)
     faults: Faults = field(default_factory=Faults)
@@ -113,13 +113,13 @@ class _ChannelSink:
         self._runner = runner
         self._channel = channel
 
-    def host_attached(self, host: LineSettings | None) -> None:
+    def host_attached(self, host: HostLine | None) -> None:
         self._runner.host_attached(self._channel, host)
 
     def host_detached(self) -> None:
         self._runner.host_detached(self._channel)
 
-    def host_line(self, host: LineSettings) -> None:
+    def host_line(self, host: HostLine) -> None:
         self._runner.host_line(self._channel, host)
 
     def host_data(self, data: bytes) -> None:
@@ -152,7 +152,10 @@ class DeviceRunner:
         self._timer: asyncio.TimerHandle | None = None
         self._timer_due: float | None = None
         self._actions: list[tuple[float, Callable[[], None]]] = []
-        clock.on_change(self.pump)
+        clock.on_change(self._on_clock_change)
+
+    def _on_clock_change(self) -> None:
+        self.pump()
 
     @property
     def name(self) -> str:
@@ -180,7 +183,7 @@ class DeviceRunner:
 
     # ---- transport events ---------------------------------------------------------------------
 
-    def host_attached(self, ch: Channel, host: LineSettings | None) -> None:
+    def host_attached(self, ch: Channel, host: HostLine | None) -> None:
         ch.attached = True
         ch.to_host.clear()
         ch.from_host.clear()
@@ -199,10 +202,10 @@ class DeviceRunner:
         log.info("%s/%s: host detached%s", self.name, ch.name, lost)
         self._set_host(ch, None)
 
-    def host_line(self, ch: Channel, host: LineSettings) -> None:
+    def host_line(self, ch: Channel, host: HostLine) -> None:
         self._set_host(ch, host)
 
-    def _set_host(self, ch: Channel, host: LineSettings | None) -> None:
+    def _set_host(self, ch: Channel, host: HostLine | None) -> None:
         now = self.clock.now()
         self.device.advance(now)
         ch.host = host
@@ -348,7 +351,7 @@ class DeviceRunner:
                     "%s/%s: host uses %s, device expects %s%s",
                     self.name,
                     ch.name,
-                    _fill_unseen(ch.host, own).describe(),
+                    ch.host.filled(own).describe(),
                     own.describe(),
                     f"; {effect}" if effect else "",
                 )
@@ -475,11 +478,3 @@ def _fault_params(fault: str, params: dict[str, Any]) -> dict[str, float]:
             raise ValueError(f"count must be a whole number, got {value:g}")
         values[name] = value
     return values
-
-
-def _fill_unseen(host: LineSettings, own: LineSettings) -> LineSettings:
-    """The host's settings with what the transport cannot see taken from the device (assumed equal)."""
-    names = ("baud", "data_bits", "parity", "stop_bits", "rtscts", "xonxoff")
-    return LineSettings(
-        **{n: getattr(own, n) if getattr(host, n) is None else getattr(host, n) for n in names}
-    )

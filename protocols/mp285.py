@@ -11,7 +11,8 @@ What is here:
   `StrayTerminator`, `BadFrame` and `BufferOverrun` items and exposes its state (command position,
   inside a frame, discarding) so a device model can treat bytes during a move differently;
 - reply encoders/decoders: positions, the 32-byte `StatusBlock`, uploaded programs, error codes;
-- the `V` word (`Velocity`), microstep/micrometre conversion, one-line traffic summaries.
+- the `V` word (`Velocity`) and the speed limits (`SpeedLimits`), microstep/micrometre conversion,
+  one-line traffic summaries.
 
 This module must not import from `emulator`: the client library and the conformance suite use it.
 """
@@ -23,6 +24,9 @@ import struct
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, fields
 from typing import ClassVar
+
+# re-exported: MP-285 code rounds through this module (µm to µsteps, STEP fields, positions)
+from protocols.rounding import round_half_away as round_half_away
 
 CR = 0x0D
 LF = 0x0A
@@ -100,7 +104,7 @@ def pack_u16(value: int) -> bytes:
 
 
 def unpack_u16(data: bytes) -> int:
-    return struct.unpack("<H", data)[0]
+    return int(struct.unpack("<H", data)[0])
 
 
 def pack_xyz(x: int, y: int, z: int) -> bytes:
@@ -137,6 +141,32 @@ class Velocity:
 
     def describe(self) -> str:
         return f"{self.speed} µm/s {'high' if self.high else 'low'} (word {self.word:04X})"
+
+
+#: the fastest `V` speed in µm/s (MP-38): at low resolution by controller model, at high resolution
+MAX_SPEED_LOW_UM_S = {"mp285": 6550, "mp285a": 3000}
+MAX_SPEED_HIGH_UM_S = 1310
+
+
+@dataclass(frozen=True)
+class SpeedLimits:
+    """The fastest speed in µm/s at low and at high resolution (MP-38)."""
+
+    low: int
+    high: int = MAX_SPEED_HIGH_UM_S
+
+    @classmethod
+    def of_model(cls, model: str) -> SpeedLimits:
+        """A controller model's documented limits (`mp285` or `mp285a`)."""
+        return cls(MAX_SPEED_LOW_UM_S[model])
+
+    def limit(self, high: bool) -> int:
+        return self.high if high else self.low
+
+    def clamp(self, velocity: Velocity) -> Velocity:
+        """The velocity in force after `V`: a speed over its resolution's limit is reduced to the
+        limit (MP-39)."""
+        return Velocity(min(velocity.speed, self.limit(velocity.high)), velocity.high)
 
 
 # ---- program vectors (MP-16, MP-17) ----------------------------------------------------------------
@@ -515,12 +545,6 @@ def axis_factors(device_type: str, z_usteps_per_um: float = DEFAULT_Z_USTEPS_PER
     """µsteps per µm of X, Y, Z."""
     xy = XY_USTEPS_PER_UM[device_type]
     return (xy, xy, z_usteps_per_um)
-
-
-def round_half_away(value: float) -> int:
-    """Nearest integer, halves away from zero."""
-    magnitude = int(abs(value) + 0.5)
-    return magnitude if value >= 0 else -magnitude
 
 
 def usteps_to_um(usteps: int, usteps_per_um: float) -> float:

@@ -4,8 +4,9 @@ No I/O, no clock and no emulator imports. It covers:
 - the command table (long names, shortcuts, owning firmware module) and command-word matching;
 - the argument grammar (`L=v`, `L?`, `L+`, `L-`, bare `L`, bare numbers; prefixes before the key
   letter, spaces around `=`, missing value = 0);
-- reply shapes and number formats, error replies, terminators and multi-line replies;
-- reply classification for host programs;
+- how a host writes a command line (`format_command`, `command_line`);
+- reply shapes and number formats, the error table, terminators and multi-line replies;
+- reply classification for host programs (`parse_reply`), the INFO and BU X layouts;
 - the low-level binary mode (control sequences, frames, 24-bit numbers);
 - one-line traffic summaries.
 
@@ -268,22 +269,28 @@ def _parse_token(token: str) -> Item:
     return Item(Kind.MALFORMED, text=token)
 
 
-def command_line(word: str, items: Mapping[str, object] | Sequence[str] = ()) -> bytes:
-    """Encode a host command line: `command_line("M", {"X": 1000})` -> `b"M X=1000\\r"`; a mapping
-    value None sends `L?`, a sequence sends its items verbatim (`["X+", "Y?"]`)."""
+def format_command(word: str, items: Mapping[str, float | None] | Sequence[str] = ()) -> str:
+    """A host command line without its CR: `format_command("M", {"X": 1000})` -> `M X=1000`; a
+    mapping value None asks `L?`, a sequence sends its items verbatim (`["X+", "Y?"]`)."""
     parts = [word]
     if isinstance(items, Mapping):
         for letter, value in items.items():
-            parts.append(f"{letter}?" if value is None else f"{letter}={_host_number(value)}")
+            parts.append(f"{letter}?" if value is None else f"{letter}={host_number(value)}")
     else:
         parts.extend(items)
-    return " ".join(parts).encode("ascii") + CR
+    return " ".join(parts)
 
 
-def _host_number(value: object) -> str:
-    if isinstance(value, float):
-        return f"{value:.6f}"
-    return str(value)
+def command_line(word: str, items: Mapping[str, float | None] | Sequence[str] = ()) -> bytes:
+    """`format_command` encoded, with its CR: `command_line("M", {"X": 1000})` -> `b"M X=1000\\r"`."""
+    return format_command(word, items).encode("ascii") + CR
+
+
+def host_number(value: float) -> str:
+    """A number as the controller's own examples send it: integers bare, others to 6 decimals."""
+    if float(value).is_integer():
+        return str(int(value))
+    return f"{value:.6f}"
 
 
 # ---- number formats (MS-47, MS-48) ------------------------------------------------------------
@@ -445,7 +452,8 @@ class ErrorCode(IntEnum):
     HALTED = 21
 
 
-ERROR_TEXT = {
+#: the meaning of each error code (MS-39)
+ERROR_TEXT: dict[int, str] = {
     ErrorCode.UNKNOWN_COMMAND: "unknown command",
     ErrorCode.BAD_AXIS: "unrecognised axis parameter",
     ErrorCode.MISSING_PARAMETERS: "missing parameters",
@@ -454,6 +462,11 @@ ERROR_TEXT = {
     ErrorCode.UNDEFINED: "undefined error",
     ErrorCode.HALTED: "serial command halted by HALT",
 }
+
+
+def error_text(code: int) -> str:
+    """The meaning of `:N-<code>`; `error` for a code outside the table."""
+    return ERROR_TEXT.get(code, "error")
 
 
 def error_reply(code: int) -> str:
@@ -473,8 +486,10 @@ class ReplyKind(Enum):
 
 @dataclass(frozen=True)
 class ParsedReply:
-    """A host's reading of one reply line. `values` keeps names (letter or `JS_FAST`...) in reply
-    order; `numbers` keeps the value list of `A_list` replies; `text` is the line without terminator."""
+    """A host's reading of one reply line. `values` keeps the `NAME=number` items (letter or
+    `JS_FAST`...) in reply order; `numbers` keeps the items of an `:A` reply that are not all such
+    items (the `A_list` values, or words such as `Version: USB-9.2k`); `text` is the line without
+    terminator."""
 
     kind: ReplyKind
     text: str
@@ -490,27 +505,46 @@ class ParsedReply:
 
 
 _ERROR = re.compile(r":N-(\d+)")
-_PAIR = re.compile(r"([A-Za-z_]+)=(\S*)")
+_VALUE_ITEM = re.compile(rf"([A-Z][A-Z_]*)=({_NUMBER.pattern})")
 
 
 def parse_reply(line: bytes | str) -> ParsedReply:
-    """Classify one reply line (terminators and a leading LF left by CR-only readers are ignored)."""
+    """Classify one reply line, the shapes of `format_items` (terminators, surrounding blanks and a
+    leading LF left by CR-only readers are ignored). `:X=1 A` and `X=1 :A` count as values only
+    when every item is `NAME=number`; otherwise, like any other line, they are text."""
     text = line.decode("latin-1") if isinstance(line, bytes) else line
     text = text.strip("\r\n")
-    core = text.strip(" ")
+    core = text.strip()
     error = _ERROR.fullmatch(core)
     if error:
         return ParsedReply(ReplyKind.ERROR, text, int(error.group(1)))
     if core in ("N", "B"):
         return ParsedReply(ReplyKind.BUSY, text)
-    if core == ":A":
-        return ParsedReply(ReplyKind.ACK, text)
-    if core.startswith(":A ") or (core.startswith(":") and core.endswith(" A")) or core.endswith(" :A"):
-        body = core[3:] if core.startswith(":A ") else core[1:-2] if core.endswith(" A") else core[:-3]
-        pairs = tuple((m.group(1), m.group(2)) for m in _PAIR.finditer(body))
-        numbers = () if pairs else tuple(body.split())
-        return ParsedReply(ReplyKind.VALUES, text, values=pairs, numbers=numbers)
+    if core.startswith(":A"):
+        tokens = core[2:].split()
+        if not tokens:
+            return ParsedReply(ReplyKind.ACK, text)
+        values = _value_items(tokens)
+        if values:
+            return ParsedReply(ReplyKind.VALUES, text, values=values)
+        return ParsedReply(ReplyKind.VALUES, text, numbers=tuple(tokens))
+    if core.startswith(":") and core.endswith(" A"):
+        values = _value_items(core[1:-2].split())
+    elif core.endswith(":A"):
+        values = _value_items(core[:-2].split())
+    else:
+        values = ()
+    if values:
+        return ParsedReply(ReplyKind.VALUES, text, values=values)
     return ParsedReply(ReplyKind.TEXT, text)
+
+
+def _value_items(tokens: list[str]) -> tuple[tuple[str, str], ...]:
+    """(name, number text) of each token, or () unless every token is `NAME=number`."""
+    matches = [_VALUE_ITEM.fullmatch(token) for token in tokens]
+    if not all(matches):
+        return ()
+    return tuple((m.group(1), m.group(2)) for m in matches if m)
 
 
 def split_lines(block: bytes) -> list[bytes]:
@@ -522,14 +556,29 @@ def split_lines(block: bytes) -> list[bytes]:
     return block.split(CR) if block else [b""]
 
 
+# ---- text reports: INFO (MS-106) and BU X (MS-102) -------------------------------------------
+
+#: each INFO row holds two items, the left one padded to this many characters
+INFO_LEFT_WIDTH = 33
+#: the BU X lines naming the motor axes (in hardware order, MS-29) and the command letters
+BU_MOTOR_AXES = "Motor Axes:"
+BU_CMDS = "CMDs:"
+
+
+def parse_info(report: str) -> dict[str, str]:
+    """An INFO report (rows separated by CR) as {label: value with units}."""
+    result: dict[str, str] = {}
+    for row in report.split("\r"):
+        for item in (row[:INFO_LEFT_WIDTH], row[INFO_LEFT_WIDTH:]):
+            label, sep, value = item.partition(":")
+            if sep and label.strip():
+                result[label.strip()] = value.strip()
+    return result
+
+
 # ---- low-level binary mode (§8) ---------------------------------------------------------------
 
 CONTROL = 0xFF
-LL_ENTER = b"\xffB"
-LL_EXIT = b"\xffA"
-LL_RESET = b"\xffR"
-LL_HUNDREDTHS = b"\xffH"
-LL_TENTHS = b"\xffT"
 LL_TERMINATOR = 0x3A
 INT24_MAX = (1 << 23) - 1
 
@@ -558,7 +607,6 @@ LL_REPLY_LENGTH = {
     LLCommand.STATUS: 1,
     LLCommand.READ_INCREMENT: 3,
 }
-LL_READS = frozenset(LL_REPLY_LENGTH)
 #: the n a host sends with each read: the reply length, except `l` (3 position bytes, the status
 #: byte comes on top) and `?` (0), as in ASI's examples (MS-120)
 LL_READ_N = {

@@ -17,17 +17,17 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from typing import Protocol
 
-from emulator.device import LineSettings
+from emulator.device import HostLine
 
 
 class PortSink(Protocol):
     """Receives what a transport observes (implemented by the device runner)."""
 
-    def host_attached(self, host: LineSettings | None) -> None: ...
+    def host_attached(self, host: HostLine | None) -> None: ...
 
     def host_detached(self) -> None: ...
 
-    def host_line(self, host: LineSettings) -> None: ...
+    def host_line(self, host: HostLine) -> None: ...
 
     def host_data(self, data: bytes) -> None: ...
 

@@ -29,7 +29,7 @@ import termios
 import tty
 from pathlib import Path
 
-from emulator.device import LineSettings
+from emulator.device import HostLine
 from emulator.runtime import PTS_DIR
 from emulator.transports.base import PortSink, Transport
 
@@ -67,14 +67,14 @@ class PortError(Exception):
     """The port cannot be created where asked; the message says why and what to do."""
 
 
-def host_settings(master: int) -> LineSettings:
-    """What the host configured on the slave, read through the master."""
+def host_settings(master: int) -> HostLine:
+    """What the host configured on the slave, read through the master (parity and data bits unseen)."""
     iflag, _oflag, cflag, _lflag, ispeed, ospeed, _cc = termios.tcgetattr(master)
     baud = _SPEEDS.get(ospeed) or _SPEEDS.get(ispeed)
     if cflag & CBAUD == BOTHER:
         raw = fcntl.ioctl(master, TCGETS2, bytes(44))
         baud = struct.unpack_from("I", raw, 40)[0] or None  # 0 is no rate at all: treat as unknown
-    return LineSettings(
+    return HostLine(
         baud=baud,
         data_bits=None,
         parity=None,
@@ -116,7 +116,7 @@ class PtyTransport(Transport):
         self._epoll: select.epoll | None = None
         self._pts = ""
         self._attached = False
-        self._host: LineSettings | None = None
+        self._host: HostLine | None = None
         self._pending = bytearray()
         #: reading stopped because the sink had no room; `resume_reading` restarts it
         self._paused = False

@@ -29,11 +29,9 @@ from typing import Any
 import serial
 
 from protocols import mp285 as proto
-from protocols.mp285 import CR, ErrorCode, StatusBlock, Vector, Velocity
+from protocols.clients.errors import NoReply
+from protocols.mp285 import CR, ErrorCode, SpeedLimits, StatusBlock, Vector, Velocity
 
-#: speed limits in µm/s, low resolution by controller model and high resolution (MP-38)
-MAX_SPEED_LOW = {"mp285": 6550, "mp285a": 3000}
-MAX_SPEED_HIGH = 1310
 Xyz = tuple[int, int, int]
 
 
@@ -85,10 +83,6 @@ def error_for(code: int, command: str) -> Mp285Error:
     return Mp285Error(command, code)
 
 
-class NoReply(Exception):
-    """The reply did not arrive (completely) before the timeout."""
-
-
 class UnexpectedReply(Exception):
     """Bytes that are neither the command's reply nor an error reply."""
 
@@ -130,13 +124,14 @@ class Mp285:
         reset_deaf_s: float = 0.2,
         margin_s: float = 0.5,
     ) -> None:
-        if model not in MAX_SPEED_LOW:
-            raise ValueError(f"model must be one of {', '.join(MAX_SPEED_LOW)}, got {model!r}")
+        if model not in proto.MAX_SPEED_LOW_UM_S:
+            raise ValueError(f"model must be one of {', '.join(proto.MAX_SPEED_LOW_UM_S)}, got {model!r}")
         if stage not in proto.XY_USTEPS_PER_UM:
             raise ValueError(f"stage must be one of {', '.join(proto.XY_USTEPS_PER_UM)}, got {stage!r}")
         self.port = port
         self.factors = proto.axis_factors(stage, z_usteps_per_um)
         self.model = model
+        self.limits = SpeedLimits.of_model(model)
         self.timeout = timeout
         self.gap_s = gap_s
         self.settle_s = settle_s
@@ -221,8 +216,7 @@ class Mp285:
         over its limit to the limit (MP-39), and so does the tracked value."""
         requested = Velocity(speed_um_s, high)
         self._command("V", proto.SetVelocity(requested.word))
-        limit = MAX_SPEED_HIGH if high else MAX_SPEED_LOW[self.model]
-        self.velocity = Velocity(min(speed_um_s, limit), high)
+        self.velocity = self.limits.clamp(requested)
 
     def set_origin(self) -> None:
         """`o`: the current position becomes (0, 0, 0) (MP-32)."""
@@ -406,7 +400,7 @@ class Mp285:
     def _motion_time(self, deltas: Sequence[int]) -> float:
         """Upper bound of the motion time: the axes' times added, which also covers axes moving one
         after another (MP-43); clamping at travel limits only shortens it (MP-36)."""
-        distance_um = sum(abs(d) / f for d, f in zip(deltas, self.factors, strict=True))
+        distance_um = sum(proto.usteps_to_um(abs(d), f) for d, f in zip(deltas, self.factors, strict=True))
         if not distance_um:
             return 0.0
         if self.velocity is None:

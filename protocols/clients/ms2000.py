@@ -8,62 +8,67 @@
 
 Replies come in several shapes (`:A`, `:A X=1.5`, `:X=1.5 A`, `X=1 :A`, `:A 1 2`, bare text, `N`/`B`);
 `parse_reply` reads them all. `:N-<code>` replies raise `MS2000Error` subclasses carrying the code.
+Command lines, reply shapes and error codes are those of the codec, `protocols.ms2000`.
 """
 
 from __future__ import annotations
 
-import re
 import time
 from dataclasses import dataclass, field
 from typing import Any
 
 import serial
 
-TERMINATOR = b"\r\n"
+from protocols import ms2000 as proto
+from protocols.clients.errors import NoReply
+from protocols.ms2000 import ErrorCode, format_command
 
-_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
-_ITEM = re.compile(rf"^([A-Z][A-Z_]*)=({_NUMBER})$")
+#: how numbers are written in command lines: integers bare, others to 6 decimals
+format_value = proto.host_number
 
 
 class MS2000Error(Exception):
     """The controller answered `:N-<code>`."""
 
-    code = 0
-    meaning = "error"
+    code: int = 0
 
     def __init__(self, command: str, code: int | None = None) -> None:
         self.command = command
         if code is not None:
             self.code = code
-        super().__init__(f"{command!r}: :N-{self.code} ({self.meaning})")
+        super().__init__(f"{command!r}: {proto.error_reply(self.code)} ({self.meaning})")
+
+    @property
+    def meaning(self) -> str:
+        return proto.error_text(self.code)
 
 
 class UnknownCommand(MS2000Error):
-    code, meaning = 1, "unknown command"
+    code = ErrorCode.UNKNOWN_COMMAND
 
 
 class UnknownAxis(MS2000Error):
-    code, meaning = 2, "unrecognised axis parameter"
+    code = ErrorCode.BAD_AXIS
 
 
 class MissingParameters(MS2000Error):
-    code, meaning = 3, "missing parameters"
+    code = ErrorCode.MISSING_PARAMETERS
 
 
 class OutOfRange(MS2000Error):
-    code, meaning = 4, "parameter out of range"
+    code = ErrorCode.OUT_OF_RANGE
 
 
 class OperationFailed(MS2000Error):
-    code, meaning = 5, "operation failed"
+    code = ErrorCode.FAILED
 
 
 class UndefinedError(MS2000Error):
-    code, meaning = 6, "undefined error"
+    code = ErrorCode.UNDEFINED
 
 
 class Halted(MS2000Error):
-    code, meaning = 21, "serial command halted by HALT"
+    code = ErrorCode.HALTED
 
 
 ERRORS: dict[int, type[MS2000Error]] = {
@@ -80,10 +85,6 @@ ERRORS: dict[int, type[MS2000Error]] = {
 }
 
 
-class NoReply(Exception):
-    """Nothing (or no complete reply) arrived before the timeout."""
-
-
 @dataclass(frozen=True)
 class Reply:
     """A parsed reply: `values` for `L=v` items, `items` for positional values, `text` for bare text."""
@@ -96,43 +97,16 @@ class Reply:
 
 def parse_reply(text: str, command: str = "") -> Reply:
     """Parse one reply (terminator removed). Raises the `MS2000Error` subclass for `:N-<code>`."""
-    stripped = text.strip()
-    error = re.fullmatch(r":N-(\d+)", stripped)
-    if error:
-        code = int(error.group(1))
-        raise ERRORS.get(code, MS2000Error)(command, code)
-    if stripped.startswith(":A"):
-        tokens = stripped[2:].split()
-        values = _items(tokens)
-        if values is not None:
-            return Reply(True, values)
-        return Reply(True, items=tuple(tokens))
-    if stripped.startswith(":") and stripped.endswith(" A"):  # `:X=0.040000 A`
-        values = _items(stripped[1:-2].split())
-        if values is not None:
-            return Reply(True, values)
-    if stripped.endswith(":A"):  # `X=10 :A`
-        values = _items(stripped[:-2].split())
-        if values is not None:
-            return Reply(True, values)
+    parsed = proto.parse_reply(text)
+    if parsed.code is not None:
+        raise ERRORS.get(parsed.code, MS2000Error)(command, parsed.code)
+    if parsed.kind is proto.ReplyKind.ACK:
+        return Reply(True)
+    if parsed.kind is proto.ReplyKind.VALUES:
+        if parsed.values:
+            return Reply(True, {name: float(value) for name, value in parsed.values})
+        return Reply(True, items=parsed.numbers)
     return Reply(False, text=text)
-
-
-def _items(tokens: list[str]) -> dict[str, float] | None:
-    values = {}
-    for token in tokens:
-        match = _ITEM.match(token)
-        if not match:
-            return None
-        values[match.group(1)] = float(match.group(2))
-    return values if tokens else None
-
-
-def format_value(value: float) -> str:
-    """Numbers as the controller's own examples send them: integers bare, others to 6 decimals."""
-    if float(value).is_integer():
-        return str(int(value))
-    return f"{value:.6f}"
 
 
 class MS2000:
@@ -156,11 +130,11 @@ class MS2000:
 
     def exchange(self, command: str) -> str:
         """Send one command line, return the reply text without its CR LF (multi-line: CR-separated)."""
-        self.port.write(command.encode("ascii") + b"\r")
-        raw = self.port.read_until(TERMINATOR)
-        if not raw.endswith(TERMINATOR):
+        self.port.write(command.encode("ascii") + proto.CR)
+        raw = self.port.read_until(proto.CRLF)
+        if not raw.endswith(proto.CRLF):
             raise NoReply(f"{command!r}: no complete reply within {self.port.timeout} s (got {raw!r})")
-        return raw[: -len(TERMINATOR)].decode("latin-1")
+        return raw[: -len(proto.CRLF)].decode("latin-1")
 
     def command(self, command: str) -> Reply:
         """Send a command and parse its reply; `:N-<code>` raises."""
@@ -168,21 +142,21 @@ class MS2000:
 
     def get(self, command: str, *letters: str) -> dict[str, float]:
         """Query settings (`get("S", "X", "Y")` -> {'X': 5.1456, 'Y': 5.1456}), any reply shape."""
-        reply = self.command(f"{command} " + " ".join(f"{letter}?" for letter in letters))
+        reply = self.command(format_command(command, [f"{letter}?" for letter in letters]))
         if reply.values:
             return reply.values
         return dict(zip(self._order(letters), (float(item) for item in reply.items), strict=False))
 
     def set(self, command: str, **values: float) -> None:
         """Set settings (`set("S", X=1.5)`); `:N-<code>` raises."""
-        self.command(f"{command} " + " ".join(f"{k}={format_value(v)}" for k, v in values.items()))
+        self.command(format_command(command, values))
 
     # ---- motion -------------------------------------------------------------------------------
 
     def axes(self) -> tuple[str, ...]:
         """Motor axes in hardware order (from `BU X`)."""
         if self._axes is None:
-            line = next((ln for ln in self.build_info()["lines"] if ln.startswith("Motor Axes:")), "")
+            line = next((ln for ln in self.build_info()["lines"] if ln.startswith(proto.BU_MOTOR_AXES)), "")
             self._axes = tuple(line.split(":", 1)[1].split()) if line else ("X", "Y", "Z")
         return self._axes
 
@@ -195,17 +169,17 @@ class MS2000:
     def where(self, *axes: str) -> dict[str, float]:
         """Positions in units (1/UM mm)."""
         axes = axes or self.axes()
-        reply = self.command("W " + " ".join(axes))
+        reply = self.command(format_command("W", axes))
         return dict(zip(self._order(axes), (float(v) for v in reply.items), strict=True))
 
     def move(self, **targets: float) -> None:
-        self.command("M " + " ".join(f"{a}={format_value(v)}" for a, v in targets.items()))
+        self.command(format_command("M", targets))
 
     def movrel(self, **deltas: float) -> None:
-        self.command("R " + " ".join(f"{a}={format_value(v)}" for a, v in deltas.items()))
+        self.command(format_command("R", deltas))
 
     def here(self, **positions: float) -> None:
-        self.command("H " + " ".join(f"{a}={format_value(v)}" for a, v in positions.items()))
+        self.command(format_command("H", positions))
 
     def is_busy(self) -> bool:
         text = self.exchange("/")
@@ -247,9 +221,9 @@ class MS2000:
         lines = self.command("BU X").text.split("\r")
         info: dict[str, Any] = {"build": lines[0], "lines": lines, "modules": []}
         for line in lines[1:]:
-            if line.startswith("Motor Axes:"):
+            if line.startswith(proto.BU_MOTOR_AXES):
                 info["axes"] = line.split(":", 1)[1].split()
-            elif line.startswith("CMDs:"):
+            elif line.startswith(proto.BU_CMDS):
                 info["cmd_letters"] = line.split(":", 1)[1].strip()
             elif not line.startswith(("BootLdr", "Hdwr")):
                 info["modules"].append(line)
@@ -263,12 +237,5 @@ class MS2000:
         return self.command("CD").text
 
     def info(self, axis: str) -> dict[str, str]:
-        """`INFO <axis>` as {label: value-with-units}; each line holds two items, the left 33 wide."""
-        text = self.exchange(f"I {axis}")
-        result: dict[str, str] = {}
-        for line in text.split("\r"):
-            for item in (line[:33], line[33:]):
-                label, sep, value = item.partition(":")
-                if sep and label.strip():
-                    result[label.strip()] = value.strip()
-        return result
+        """`INFO <axis>` as {label: value-with-units}."""
+        return proto.parse_info(self.exchange(format_command("I", [axis])))

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from emulator.device import LineSettings
+from emulator.device import HostLine
 from emulator.transports.base import PortSink, Transport
 
 
@@ -44,7 +44,7 @@ class MemoryTransport(Transport):
     def reappear(self) -> None:
         self.vanished = False
 
-    def attach(self, host: LineSettings | None = None) -> None:
+    def attach(self, host: HostLine | None = None) -> None:
         assert self.sink is not None
         self.sink.host_attached(host)
 

@@ -1,9 +1,10 @@
-"""The MS2000 client's reply parser (MS-35 shapes, MS-39 errors) and value formatting."""
+"""The MS2000 client's reply parser (MS-35 shapes, MS-39 errors), value formatting, package exports."""
 
 from __future__ import annotations
 
 import pytest
 
+from protocols import clients
 from protocols.clients.ms2000 import (
     Halted,
     MS2000Error,
@@ -51,3 +52,10 @@ def test_values_are_sent_like_the_controller_examples() -> None:
     assert format_value(1000) == "1000"
     assert format_value(-505.0) == "-505"
     assert format_value(4.69) == "4.690000"
+
+
+def test_both_clients_and_their_errors_from_the_package() -> None:
+    assert clients.MS2000.__module__ == "protocols.clients.ms2000"
+    assert clients.Mp285.__module__ == "protocols.clients.mp285"
+    assert clients.OutOfRange is OutOfRange and issubclass(clients.BadCommand, clients.Mp285Error)
+    assert OutOfRange("S X=0").meaning == "parameter out of range"

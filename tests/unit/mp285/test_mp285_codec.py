@@ -91,6 +91,15 @@ def test_velocity_word() -> None:
         p.Velocity(0x8000)
 
 
+def test_speed_limits_clamp_ms38_ms39() -> None:
+    """MP-38, MP-39: limits per model and resolution; a faster `V` speed is reduced to the limit."""
+    mp285a = p.SpeedLimits.of_model("mp285a")
+    assert (mp285a.limit(False), mp285a.limit(True)) == (3000, 1310)
+    assert p.SpeedLimits.of_model("mp285").clamp(p.Velocity(7000)) == p.Velocity(6550)
+    assert mp285a.clamp(p.Velocity(2000, True)) == p.Velocity(1310, True)
+    assert mp285a.clamp(p.Velocity(200)) == p.Velocity(200)
+
+
 def test_position_and_program_replies() -> None:
     """MP-27, MP-72: 13-byte position reply; `u` reply n + vectors + CR, `00 0D` when empty."""
     reply = p.encode_position(-4_596_737, -4_576_262, -16_148_393)

@@ -79,6 +79,14 @@ def test_command_line_encoder() -> None:
     assert p.command_line("M", {"X": 1000, "Y": -505}) == b"M X=1000 Y=-505\r"
     assert p.command_line("S", {"X": 4.69, "Y": None}) == b"S X=4.690000 Y?\r"
     assert p.command_line("RS", ["X+"]) == b"RS X+\r"
+    assert p.format_command("M", {"X": 1000.0, "Y": -0.5}) == "M X=1000 Y=-0.500000"
+    assert p.format_command("W", ["X", "Y"]) == "W X Y"
+
+
+def test_error_table_ms39() -> None:
+    assert p.error_text(p.ErrorCode.OUT_OF_RANGE) == "parameter out of range"
+    assert p.error_text(21) == "serial command halted by HALT"
+    assert p.error_text(9) == "error"
 
 
 @pytest.mark.parametrize(
@@ -168,6 +176,33 @@ def test_parse_reply(line: bytes, kind: p.ReplyKind, detail: object) -> None:
 
 def test_parse_reply_list() -> None:
     assert p.parse_reply(b":A 1000 -505 0\r\n").numbers == ("1000", "-505", "0")
+
+
+@pytest.mark.parametrize(
+    ("line", "kind", "values", "numbers"),
+    [
+        (":A Version: USB-9.2k ", p.ReplyKind.VALUES, (), ("Version:", "USB-9.2k")),
+        (":A X=abc", p.ReplyKind.VALUES, (), ("X=abc",)),
+        (":X=1 Y A", p.ReplyKind.TEXT, (), ()),
+        ("85\r87\r:A", p.ReplyKind.TEXT, (), ()),
+    ],
+)
+def test_parse_reply_values_only_when_every_item_is_name_number(
+    line: str, kind: p.ReplyKind, values: tuple[tuple[str, str], ...], numbers: tuple[str, ...]
+) -> None:
+    reply = p.parse_reply(line)
+    assert (reply.kind, reply.values, reply.numbers) == (kind, values, numbers)
+
+
+def test_parse_info_splits_rows_at_column_33_ms106() -> None:
+    row = f"{'Axis Name    :  X':<{p.INFO_LEFT_WIDTH}}Limits Status: U"
+    speed = f"{'Max Speed    :  7.680000 (mm/s)':<{p.INFO_LEFT_WIDTH}}Ramp Time    :        50 (ms)[AC]"
+    assert p.parse_info(f"{row}\r{speed}") == {
+        "Axis Name": "X",
+        "Limits Status": "U",
+        "Max Speed": "7.680000 (mm/s)",
+        "Ramp Time": "50 (ms)[AC]",
+    }
 
 
 @pytest.mark.parametrize(
