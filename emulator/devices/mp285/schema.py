@@ -12,7 +12,6 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from emulator.motion import round_half_away
 from emulator.profile import line_struct
 from emulator.schema import (
     Bool,
@@ -37,7 +36,6 @@ DUMP_B = "62 03 01 01 04 00 14 00 63 00 05 00 88 13 01 78 C4 09 88 13 50 00 00 0
 HEX32 = r"\s*(?:[0-9A-Fa-f]{2}\s*){32}"
 TRAVEL_UM = 25_000  # MP-285 axes and any Z
 MT800_XY_TRAVEL_UM = 22_000
-MAX_SPEED_LOW = {"mp285": 6550, "mp285a": 3000}
 SIGNATURE_BYTES = {"nul": b"\x00", "zero_char": b"0", "silent": b""}
 MAX_SECONDS = 3600.0
 MAX_ACCEL_UM_S2 = 1e7
@@ -56,7 +54,7 @@ def _template_word(offset: int) -> Derived:
 def _travel(values: Mapping[str, Any]) -> list[int]:
     xy_um = MT800_XY_TRAVEL_UM if values["device_type"] == "mt800" else TRAVEL_UM
     xy = xy_um * proto.XY_USTEPS_PER_UM[values["device_type"]]
-    return [xy, xy, round_half_away(TRAVEL_UM * values["z_usteps_per_um"])]
+    return [xy, xy, proto.round_half_away(TRAVEL_UM * values["z_usteps_per_um"])]
 
 
 def _check_stage(values: Mapping[str, Any], path: tuple) -> None:
@@ -76,6 +74,11 @@ def _check_stage(values: Mapping[str, Any], path: tuple) -> None:
                 (*path, "origin_usteps_from_bot", axis),
                 f"reported positions {low} … {high} would not fit a signed 32-bit value",
             )
+
+
+def speed_limits(controller: Any) -> proto.SpeedLimits:
+    """The profile's `V` speed limits (MP-38)."""
+    return proto.SpeedLimits(controller.max_speed_low_um_s, controller.max_speed_high_um_s)
 
 
 def _check_profile(values: Mapping[str, Any], path: tuple) -> None:
@@ -98,7 +101,7 @@ def _check_profile(values: Mapping[str, Any], path: tuple) -> None:
             (*path, "line", "flow_control"), "the RS-232 port is 3-wire without flow control (MP-1): none"
         )
     velocity = proto.Velocity.from_word(controller.power_on_velocity_word)
-    limit = controller.max_speed_high_um_s if velocity.high else controller.max_speed_low_um_s
+    limit = speed_limits(controller).limit(velocity.high)
     if velocity.speed > limit:
         raise SchemaError(
             (*path, "controller", "power_on_velocity_word"),
@@ -151,11 +154,17 @@ CONTROLLER = Struct(
             "MP-61",
             "V word in force at power-on and after reset (bit 15 high resolution, bits 14-0 µm/s)",
         ),
-        Field("max_speed_high_um_s", Int(1, 0x7FFF), 1310, "MP-38", "speed limit at high resolution"),
+        Field(
+            "max_speed_high_um_s",
+            Int(1, 0x7FFF),
+            proto.MAX_SPEED_HIGH_UM_S,
+            "MP-38",
+            "speed limit at high resolution",
+        ),
         Field(
             "max_speed_low_um_s",
             Int(1, 0x7FFF),
-            Derived(lambda v: MAX_SPEED_LOW[v["model"]], "6550 (MP-285), 3000 (MP-285A)"),
+            Derived(lambda v: proto.MAX_SPEED_LOW_UM_S[v["model"]], "6550 (MP-285), 3000 (MP-285A)"),
             "MP-38",
             "speed limit at low resolution",
         ),
