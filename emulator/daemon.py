@@ -28,8 +28,9 @@ from typing import Any, TextIO
 from emulator import registry
 from emulator.clock import ScaledClock
 from emulator.control import ControlServer
-from emulator.device import Device, HostServices
+from emulator.device import Device, HostServices, Store, StoreOpener, StoreReport
 from emulator.line import REALISTIC
+from emulator.nvstore import FlashWriter, StorageError
 from emulator.rig import DeviceSpec, Rig
 from emulator.runner import DeviceRunner
 from emulator.runtime import (
@@ -84,6 +85,9 @@ class Daemon:
         self._ownership: Ownership | None = None
         self._ready_written: tuple[int, int] | None = None
         self._errors = _RateLimitedErrors()
+        #: writes every device's non-volatile memory on its own thread (emulator/nvstore.py)
+        self._flash: FlashWriter | None = None
+        self._closing = False
 
     async def run(self) -> int:
         loop = asyncio.get_running_loop()
@@ -135,7 +139,7 @@ class Daemon:
             except OSError as exc:
                 raise SetupError(f"--log-traffic {traffic}: cannot open: {exc.strerror or exc}") from None
         state_dir = self.options.state_dir or default_state_dir()
-        services = HostServices(state_dir=state_dir)
+        self._flash = FlashWriter(state_dir, loop.call_soon_threadsafe)
         control_path = (
             check_output_path(self.options.control_path, "--control")
             if self.options.control_path
@@ -147,7 +151,7 @@ class Daemon:
         ready: list[dict[str, Any]] = []
         for spec in self.rig.devices:
             runner = DeviceRunner(
-                _factory(spec, services),
+                _factory(spec, HostServices(stores=self._stores_for(spec.name))),
                 self.clock,
                 loop=loop,
                 traffic=self._traffic,
@@ -182,14 +186,36 @@ class Daemon:
             self.out.write(json.dumps(line) + "\n")
         self.out.flush()
 
+    def _stores_for(self, device: str) -> StoreOpener:
+        """Stores of `device` write on the flash writer's thread, never on the loop. Their outcome
+        comes back on the loop and goes to the model through its runner, between two model calls,
+        so what it causes (the `storage_error` flag and event, a held `SS` reply) flows out at once."""
+
+        def open_store(device_id: str, report: StoreReport) -> Store:
+            def settled(failure: StorageError | None) -> None:
+                runner = self.runners.get(device)
+                if runner is None or self._closing:  # no ports to carry what it causes: the model alone
+                    report(failure)
+                else:
+                    runner.call(lambda now: report(failure))
+
+            assert self._flash is not None
+            return self._flash.open(device_id, settled)
+
+        return open_store
+
     def _publish(self, device: str, event: dict[str, Any]) -> None:
         if self.control is not None:
             self.control.publish(device, event)
 
     async def shutdown(self) -> None:
         """Undo what start did, each step on its own so one failure does not leave the rest behind."""
+        self._closing = True
         for runner in self.runners.values():
             _cleanup_step(f"closing {runner.name}", runner.close)
+        if self._flash is not None:
+            # the last image of every store reaches the disk before we exit (SIGTERM loses no save)
+            await asyncio.to_thread(self._flash.close)
         if self.control is not None:
             await self.control.stop()
         if self._traffic is not None:

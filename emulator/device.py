@@ -24,18 +24,21 @@ from __future__ import annotations
 
 import logging
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
+from collections.abc import Callable
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, Protocol
 
+from emulator.nvstore import ReportingStore, StorageError
 from emulator.profile import Profile
 
 MAIN = "main"
 
 
 @dataclass(frozen=True)
-class LineSettings:
-    """Serial line settings of one end. None means "not visible on this transport" (assume a match)."""
+class HostLine:
+    """What a host was seen to set on its end of the line. None means "not visible on this
+    transport" (a PTY shows no parity or data bits): assumed to match the device."""
 
     baud: int | None = None
     data_bits: int | None = None
@@ -43,6 +46,12 @@ class LineSettings:
     stop_bits: float | None = None  # 1, 1.5 or 2
     rtscts: bool | None = None
     xonxoff: bool | None = None
+
+    def filled(self, fallback: LineSettings) -> LineSettings:
+        """The settings in effect: those not seen taken from `fallback`, the device's own. The one
+        place unseen settings are filled in (pacing, mismatch checks and log lines use it)."""
+        seen = {f.name: getattr(self, f.name) for f in fields(self) if getattr(self, f.name) is not None}
+        return replace(fallback, **seen)
 
     def describe(self) -> str:
         """Compact form used in log lines, e.g. `9600 8N1 rtscts`."""
@@ -59,6 +68,15 @@ class LineSettings:
 
 
 @dataclass(frozen=True)
+class LineSettings(HostLine):
+    """A device's complete line settings (`Device.line_settings`): every field is set.
+
+    It is a `HostLine` too, a host seen in full, so it can stand in where a host is expected. Device
+    models and their tests still build what a host set as `LineSettings` with None fields, so the
+    fields stay optional until those build `HostLine` instead."""
+
+
+@dataclass(frozen=True)
 class Emission:
     """Bytes the device hands to its transmitter at device time `due`, on one of its channels."""
 
@@ -67,12 +85,46 @@ class Emission:
     channel: str = MAIN
 
 
+class Store(Protocol):
+    """A device's non-volatile memory as the model sees it (emulator/nvstore.py has the kinds).
+
+    `load()` and `erase()` raise StorageError. `save()` never raises: the outcome goes to the report
+    callback the store was opened with, either before `save` returns or later, on the host's thread
+    between two model calls, once the store has settled (its latest image is on disk, or failed)."""
+
+    @property
+    def persistent(self) -> bool:
+        """Whether saves outlive the model (False: the in-memory copy is all there is)."""
+        ...
+
+    def load(self) -> dict[str, Any]: ...
+
+    def save(self, data: dict[str, Any]) -> None: ...
+
+    def erase(self) -> None: ...
+
+
+#: the outcome of a store's saves: None once on disk, else the failure (already logged)
+StoreReport = Callable[[StorageError | None], None]
+#: opens the store of a device identity (a profile value), reporting its saves to the callback
+StoreOpener = Callable[[str, StoreReport], Store]
+
+
 @dataclass(frozen=True)
 class HostServices:
     """What the host offers a model besides bytes and time."""
 
-    #: directory for non-volatile device memory (emulator/nvstore.py); None = nothing persists
+    #: directory for non-volatile device memory, written synchronously by `open_store`'s default
+    #: stores; None = nothing persists beyond the model (its store is in memory)
     state_dir: Path | None = None
+    #: how the host opens stores instead (the daemon's write on a worker thread, emulator/daemon.py)
+    stores: StoreOpener | None = None
+
+    def open_store(self, device_id: str, report: StoreReport) -> Store:
+        """The store of `device_id`; every save's outcome goes to `report`."""
+        if self.stores is not None:
+            return self.stores(device_id, report)
+        return ReportingStore(self.state_dir, device_id, report)
 
 
 class ControlError(Exception):
@@ -129,10 +181,10 @@ class Device(ABC):
         """The device's own line settings on `channel` (what its UART is set to now)."""
 
     @abstractmethod
-    def line_changed(self, host: LineSettings | None, now: float, channel: str = MAIN) -> None:
+    def line_changed(self, host: HostLine | None, now: float, channel: str = MAIN) -> None:
         """The host's settings as the transport sees them; None when no host is attached."""
 
-    def mismatch_effect(self, host: LineSettings, channel: str = MAIN) -> str:
+    def mismatch_effect(self, host: HostLine, channel: str = MAIN) -> str:
         """What a host with these (differing) settings will experience, for the one-line warning,
         e.g. `traffic will be garbled (line_mismatch=garble)`."""
         return ""

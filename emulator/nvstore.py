@@ -11,6 +11,12 @@ disk, but the in-memory copy still behaves like flash for the life of the model.
 
 Failures to read, write or remove the file are logged and raised as `StorageError`; the caller
 decides what the device does about them (the MS2000 acks `SS Z` anyway and raises a fault flag).
+
+A device model gets its store from the host (`HostServices.open_store`, emulator/device.py) and
+never sees a file. Two kinds hand the outcome of each save to a `report` callback instead of raising:
+`ReportingStore` writes at once, on the caller's thread (unit tests, in-process hosting);
+`DeferredStore`, opened from the daemon's `FlashWriter`, queues the image for a worker thread, so the
+event loop never waits for a disk, and reports back through the loop.
 """
 
 from __future__ import annotations
@@ -23,7 +29,10 @@ import os
 import re
 import stat
 import tempfile
+import threading
 import time
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -76,10 +85,21 @@ class NvStore:
         self._data = copy.deepcopy(data)
         if self.path is None:
             return
+        failure = self.write_text(self._text())
+        if failure is not None:
+            raise failure
+
+    def _text(self) -> str:
+        return json.dumps(self._data, sort_keys=True, indent=1)
+
+    def write_text(self, text: str) -> StorageError | None:
+        """Write `text` atomically; the failure (logged) instead of raising it."""
+        assert self.path is not None
         try:
-            _write_atomic(self.path, json.dumps(self._data, sort_keys=True, indent=1))
+            _write_atomic(self.path, text)
         except OSError as exc:
-            raise self._failure("save", self.path, exc) from exc
+            return self._failure("save", self.path, exc)
+        return None
 
     def erase(self) -> None:
         """Forget everything (factory-fresh flash) and remove the file. Raises StorageError when
@@ -96,6 +116,7 @@ class NvStore:
         if exc.filename is not None and str(exc.filename) != str(path):  # a temporary file, the directory
             reason += f": {exc.filename}"
         failure = StorageError(op, path, reason)
+        failure.__cause__ = exc
         log.error("%s: %s", self.device_id, failure)
         return failure
 
@@ -217,3 +238,129 @@ def _write_atomic(path: Path, text: str) -> None:
         os.fsync(dir_fd)
     finally:
         os.close(dir_fd)
+
+
+#: what a store tells its model about a save: None once written, else the (logged) StorageError
+Report = Callable[[StorageError | None], None]
+
+
+class ReportingStore(NvStore):
+    """An NvStore whose saves never raise: each outcome goes to `report` before `save` returns.
+    What `HostServices` hands a model when the host has no writer thread (unit tests, in-process)."""
+
+    def __init__(self, state_dir: Path | None, device_id: str, report: Report) -> None:
+        super().__init__(state_dir, device_id)
+        self.report = report
+
+    def save(self, data: dict[str, Any]) -> None:
+        try:
+            super().save(data)
+        except StorageError as failure:
+            self.report(failure)
+        else:
+            self.report(None)
+
+
+class DeferredStore(ReportingStore):
+    """A store of the daemon: `save` keeps the image in memory and queues it on its FlashWriter.
+    `report` runs on the host's thread once the store has settled (the latest image is on disk, or
+    its write failed); an image replaced before it was written is never reported on its own. Loads
+    and erases stay synchronous: they happen once per model (start-up, factory reset)."""
+
+    def __init__(self, writer: FlashWriter, state_dir: Path, device_id: str, report: Report) -> None:
+        super().__init__(state_dir, device_id, report)
+        self._writer = writer
+        #: images saved so far; the writer hands back the number of the one it wrote
+        self._saved = 0
+
+    def save(self, data: dict[str, Any]) -> None:
+        self._data = copy.deepcopy(data)
+        self._saved += 1
+        self._writer.submit(self, self._saved, self._text())
+
+    def written(self, number: int, failure: StorageError | None) -> None:
+        """The writer wrote image `number` (on the host's thread)."""
+        if number == self._saved:
+            self.report(failure)
+
+    def erase(self) -> None:
+        dropped = self._writer.drop(self)  # after this no write of ours can land behind the unlink
+        try:
+            super().erase()
+        except StorageError:
+            if dropped is not None:
+                self._writer.submit(self, *dropped)
+            raise
+
+
+class FlashWriter:
+    """The daemon's flash: DeferredStores whose files are written on one worker thread, off the
+    event loop (rule 2 of the design), atomically as NvStore writes them.
+
+    Coalesced: a store has at most one image waiting; a newer save replaces it, so a burst of saves
+    costs one write of the latest image. `deliver(callable)` must run the callable on the host's
+    thread (the loop's `call_soon_threadsafe`): outcomes go back through it. `close()` writes every
+    waiting image before it returns, so a clean shutdown (SIGTERM) loses no save."""
+
+    def __init__(self, state_dir: Path, deliver: Callable[[Callable[[], None]], object]) -> None:
+        self.state_dir = state_dir
+        self._deliver = deliver
+        self._cond = threading.Condition()
+        #: per store, the latest image not yet taken by the worker: (its number, its text)
+        self._waiting: dict[DeferredStore, tuple[int, str]] = {}
+        self._busy: DeferredStore | None = None
+        self._thread: threading.Thread | None = None
+        self._closed = False
+
+    def open(self, device_id: str, report: Report) -> DeferredStore:
+        return DeferredStore(self, self.state_dir, device_id, report)
+
+    def submit(self, store: DeferredStore, number: int, text: str) -> None:
+        with self._cond:
+            if not self._closed:
+                self._waiting[store] = (number, text)
+                if self._thread is None:
+                    self._thread = threading.Thread(target=self._run, name="flash-writer", daemon=True)
+                    self._thread.start()
+                self._cond.notify_all()
+                return
+            # after close the caller writes; an older image of this store must not land after it
+            self._waiting.pop(store, None)
+            while self._busy is store:
+                self._cond.wait()
+        store.written(number, store.write_text(text))
+
+    def drop(self, store: DeferredStore) -> tuple[int, str] | None:
+        """Forget the image `store` has waiting (returned) and wait for its write in progress."""
+        with self._cond:
+            dropped = self._waiting.pop(store, None)
+            while self._busy is store:
+                self._cond.wait()
+        return dropped
+
+    def close(self) -> None:
+        """Write what is waiting, then stop the worker. Blocks; later saves are written at once."""
+        with self._cond:
+            self._closed = True
+            self._cond.notify_all()
+            thread = self._thread
+        if thread is not None:
+            thread.join()
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                while not self._waiting and not self._closed:
+                    self._cond.wait()
+                if not self._waiting:
+                    return
+                store = next(iter(self._waiting))
+                number, text = self._waiting.pop(store)
+                self._busy = store
+            failure = store.write_text(text)
+            with self._cond:
+                self._busy = None
+                self._cond.notify_all()
+            # a closed loop raises RuntimeError: the process is exiting, nobody is left to tell
+            with contextlib.suppress(RuntimeError):
+                self._deliver(partial(store.written, number, failure))

@@ -68,3 +68,23 @@ def test_saved_settings_survive_sigkill_and_a_corrupt_file_is_set_aside(tmp_path
         assert daemon.stop() == 0
     assert "corrupt" in daemon.stderr()
     assert len(list((tmp_path / "state").glob("*.corrupt-*"))) == 1
+
+
+def test_sigterm_right_after_a_save_loses_nothing(tmp_path: Path) -> None:
+    """Saves are written off the event loop; a clean stop (SIGTERM) writes the last one before it
+    exits. `SL` is remembered at once and, unlike `SS Z`, acks without waiting for the disk (MS-111)."""
+    args = ["--profile", "ms2000", "--timing", "fast"]
+    daemon = start_daemon(tmp_path, args, expect_ports=1)
+    with serial.Serial(daemon.port("ms2000"), 9600, timeout=2) as port:
+        for value in range(-50, -40):
+            assert ask(port, f"SL X={value}\r".encode()) == b":A\r\n"
+    assert daemon.stop() == 0
+
+    (state,) = (tmp_path / "state").glob("*.json")
+    assert json.loads(state.read_text())["auto"]["axes"]["X"]["soft_lower"] == -41.0
+    daemon = start_daemon(tmp_path, args, expect_ports=1)
+    try:
+        with serial.Serial(daemon.port("ms2000"), 9600, timeout=2) as port:
+            assert ask(port, b"SL X?\r") == b":A X=-41.000\r\n"
+    finally:
+        assert daemon.stop() == 0

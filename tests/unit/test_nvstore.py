@@ -4,17 +4,20 @@ fails, and temporary files orphaned by a killed writer are removed at the next s
 from __future__ import annotations
 
 import errno
+import json
 import logging
 import os
 import subprocess
 import sys
-from collections.abc import Iterator
+import threading
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import pytest
 
 from emulator import nvstore
-from emulator.nvstore import LEGACY_TEMP_AGE_S, NvStore, StorageError
+from emulator.nvstore import LEGACY_TEMP_AGE_S, FlashWriter, NvStore, ReportingStore, StorageError
 
 
 def disk_full(fd: int) -> None:
@@ -138,3 +141,130 @@ def test_pidless_temporary_files_of_earlier_versions_are_removed_once_old(tmp_pa
     NvStore(tmp_path, "dev")
     assert not old.exists()
     assert fresh.exists(), "a writer of an earlier version may still be renaming it"
+
+
+# ---- stores handed to device models: reporting, and the daemon's writer thread ----------------
+
+
+class Loop:
+    """Stands in for the event loop: callables the writer hands back run when the test says."""
+
+    def __init__(self) -> None:
+        self._ready: list[Callable[[], None]] = []
+        self._lock = threading.Lock()
+
+    def deliver(self, action: Callable[[], None]) -> None:
+        with self._lock:
+            self._ready.append(action)
+
+    def run(self) -> int:
+        with self._lock:
+            ready, self._ready = self._ready, []
+        for action in ready:
+            action()
+        return len(ready)
+
+
+@dataclass
+class Gate:
+    """Holds each disk write until `release` is set; records each write's text and thread."""
+
+    release: threading.Event = field(default_factory=threading.Event)
+    started: threading.Event = field(default_factory=threading.Event)
+    writes: list[tuple[str, str]] = field(default_factory=list)
+
+    def values(self) -> list[int]:
+        return [json.loads(text)["v"] for text, _ in self.writes]
+
+
+@pytest.fixture
+def gate(monkeypatch: pytest.MonkeyPatch) -> Iterator[Gate]:
+    gate = Gate()
+    write = nvstore._write_atomic
+
+    def held(path: Path, text: str) -> None:
+        gate.writes.append((text, threading.current_thread().name))
+        gate.started.set()
+        gate.release.wait(5)
+        write(path, text)
+
+    monkeypatch.setattr(nvstore, "_write_atomic", held)
+    yield gate
+    gate.release.set()
+
+
+def test_reporting_store_reports_each_save_instead_of_raising(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    outcomes: list[StorageError | None] = []
+    store = ReportingStore(tmp_path, "dev", outcomes.append)
+    store.save({"v": 1})
+    monkeypatch.setattr(nvstore.os, "fsync", disk_full)
+    store.save({"v": 2})
+    assert outcomes[0] is None and isinstance(outcomes[1], StorageError)
+    assert store.load() == {"v": 2}
+    assert ReportingStore(None, "m", outcomes.append).persistent is False
+
+
+def test_writer_writes_off_the_callers_thread_coalesced_and_reports_once(tmp_path: Path, gate: Gate) -> None:
+    loop = Loop()
+    writer = FlashWriter(tmp_path, loop.deliver)
+    outcomes: list[StorageError | None] = []
+    store = writer.open("dev", outcomes.append)
+    store.save({"v": 1})
+    assert gate.started.wait(5)
+    for v in (2, 3, 4):
+        store.save({"v": v})  # the first write is on the disk's time: these wait, replacing each other
+    assert not (tmp_path / "dev.json").exists() and store.load() == {"v": 4}
+    gate.release.set()
+    writer.close()
+    assert gate.values() == [1, 4]
+    assert {name for _, name in gate.writes} == {"flash-writer"}
+    assert json.loads((tmp_path / "dev.json").read_text()) == {"v": 4}
+    assert loop.run() == 2 and outcomes == [None], "only the settled store is reported"
+
+
+def test_close_writes_every_waiting_image(tmp_path: Path) -> None:
+    """What a SIGTERM'd daemon does last: nothing saved is lost."""
+    writer = FlashWriter(tmp_path, Loop().deliver)
+    stores = [writer.open(f"dev{i}", lambda failure: None) for i in range(3)]
+    for i, store in enumerate(stores):
+        store.save({"v": i})
+    writer.close()
+    assert [json.loads((tmp_path / f"dev{i}.json").read_text()) for i in range(3)] == [
+        {"v": i} for i in range(3)
+    ]
+    stores[0].save({"v": 9})  # after close: written at once
+    assert json.loads((tmp_path / "dev0.json").read_text()) == {"v": 9}
+    assert not list(tmp_path.glob(".*.tmp"))
+
+
+def test_failed_background_write_is_reported_through_the_loop(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    loop = Loop()
+    writer = FlashWriter(tmp_path, loop.deliver)
+    outcomes: list[StorageError | None] = []
+    monkeypatch.setattr(nvstore.os, "fsync", disk_full)
+    writer.open("dev", outcomes.append).save({"v": 1})
+    writer.close()
+    assert outcomes == [], "reports run on the host's thread only"
+    loop.run()
+    (failure,) = outcomes
+    assert isinstance(failure, StorageError) and failure.reason == "No space left on device"
+
+
+def test_erase_drops_the_waiting_image_and_waits_for_the_write_in_progress(
+    tmp_path: Path, gate: Gate
+) -> None:
+    writer = FlashWriter(tmp_path, Loop().deliver)
+    store = writer.open("dev", lambda failure: None)
+    store.save({"v": 1})
+    assert gate.started.wait(5)
+    store.save({"v": 2})
+    threading.Timer(0.05, gate.release.set).start()
+    store.erase()  # returns once the write of v1 has landed, then removes it
+    writer.close()
+    assert not (tmp_path / "dev.json").exists()
+    assert gate.values() == [1]
+    assert store.load() == {}

@@ -19,7 +19,8 @@ from emulator.devices.ms2000.trajectory import Trajectory
 from emulator.motion import round_half_away
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.controller import MS2000, MoveGroup
+    from emulator.devices.ms2000.controller import MoveGroup
+    from emulator.devices.ms2000.modules.host import AxisHost
     from emulator.devices.ms2000.scheduler import Timer
 
 UPPER = "upper"
@@ -46,9 +47,16 @@ BUSY_ACTIVITIES = (Activity.MOVE, Activity.HOME, Activity.SPIN, Activity.VELOCIT
 
 class Axis:
     def __init__(
-        self, ctl: MS2000, index: int, letter: str, cfg: Any, settings: AxisSettings, auto: AxisAuto, t: float
+        self,
+        host: AxisHost,
+        index: int,
+        letter: str,
+        cfg: Any,
+        settings: AxisSettings,
+        auto: AxisAuto,
+        t: float,
     ) -> None:
-        self.ctl = ctl
+        self.host = host
         self.index = index
         self.hw_letter = letter  # profile letter: persistence key
         self.letter = letter  # current name (Z2B may rename it at reset, MS-115)
@@ -160,49 +168,6 @@ class Axis:
         holding = self.hold_until is not None and t < self.hold_until
         return self.activity is not Activity.IDLE or self.paused(t) or holding or self.s.maintain == 2
 
-    def status_byte(self, t: float, bit5_up_is_one: bool = True, low_level: bool = False) -> int:
-        byte = 0
-        if self.busy(t):
-            byte |= 1
-        if self.enabled or low_level:
-            byte |= 2
-        if self.motor_on(t):
-            byte |= 4
-        if self.s.manual_enabled:
-            byte |= 8
-        accel = self.traj.acc(t)
-        if self.traj.moving(t) and accel != 0:
-            byte |= 16
-            speeding_up = accel * self.traj.vel(t) > 0
-            if speeding_up == bit5_up_is_one:
-                byte |= 32
-        if self.at_limit(t, UPPER):
-            byte |= 64
-        if self.at_limit(t, LOWER):
-            byte |= 128
-        return byte
-
-    def right_char(self, t: float) -> str:
-        if self.paused(t):
-            return "P"
-        if self.activity is Activity.MOVE:
-            return "m"
-        if self.activity is Activity.HOME:
-            return "B"
-        if self.activity in (Activity.SPIN, Activity.VELOCITY):
-            return "s"
-        return " "
-
-    def move_stat(self, t: float) -> str:
-        if self.paused(t):
-            return "PAUSE"
-        if not self.traj.moving(t):
-            return "IDLE"
-        accel = self.traj.acc(t)
-        if accel == 0:
-            return "CRUISE"
-        return "RAMP" if accel * self.traj.vel(t) > 0 else "LAND"
-
     # ---- sampling: extremes since the last move command, ENSYNC crossings (MS-95) -------------
 
     def sample(self, t: float) -> None:
@@ -216,7 +181,7 @@ class Axis:
             if self.ensync_mm is not None:
                 side = (x > self.ensync_mm) - (x < self.ensync_mm)
                 if side and self.ensync_side and side != self.ensync_side:
-                    self.ctl.ensync_toggle()
+                    self.host.ensync_toggle()
                 if side:
                     self.ensync_side = side
         self._sample_t = t
@@ -241,13 +206,14 @@ class Axis:
 
     def _schedule(self, due: float, action: Any) -> None:
         self._cancel_timer()
-        self.timer = self.ctl.scheduler.at(due, action)
+        self.timer = self.host.at(due, action)
 
     def _set_path(self, t: float, segments: list[trajectory.Segment]) -> None:
         self.traj = Trajectory(t, self.pos(t), segments)
 
     def _rest(self, t: float, x: float) -> None:
         self.traj = Trajectory.rest(t, x)
+        self.host.positions_changed()  # every end of motion passes here (MS-111)
 
     def stop(self, t: float) -> None:
         """Stop dead where the axis is (HALT, stall, MS-76, MS-88); the target follows."""
@@ -307,13 +273,13 @@ class Axis:
             t, trajectory.plan(t, self.pos(t), v, goal, self._speed_counts(), self._accel_counts())
         )
         self._schedule(self.traj.end, lambda due, goal=goal: self._leg_end(due, goal))
-        self.ctl.record_sample(self, t)
+        self.host.record_sample(self, t)
 
     def _leg_end(self, t: float, goal: float) -> None:
         self.timer = None
         self.sample(t)
         self._rest(t, goal)
-        self.ctl.record_sample(self, t)
+        self.host.record_sample(self, t)
         if self.legs:
             self._next_leg(t)
         else:
@@ -321,9 +287,9 @@ class Axis:
 
     def _landed(self, t: float) -> None:
         if self.clamped is not None:
-            self.ctl.log_error(LIMIT_CODES[self.clamped])
+            self.host.log_error(LIMIT_CODES[self.clamped])
             self.clamped = None
-        settle = self.ctl.knobs.landing_ms / 1000
+        settle = self.host.knobs.landing_ms / 1000
         wait = self.s.wait_ms / 1000
         if self.activity is Activity.MOVE and self.s.maintain == 3:
             # MA=3: busy clears at landing, the servo stays on for the wait time (MS-61)
@@ -344,8 +310,8 @@ class Axis:
         activity = self.activity
         self.activity = Activity.IDLE
         if activity in (Activity.MOVE, Activity.HOME):
-            self.ctl.axis_finished(self, t)
-        self.ctl.resume_manual(self, t)
+            self.host.axis_finished(self, t)
+        self.host.resume_manual(self, t)
 
     # ---- open-ended motion: spin, VE, joystick -------------------------------------------------
 
@@ -404,7 +370,7 @@ class Axis:
         self._rest(t, float(round_half_away(x)))
         self.target = round_half_away(x)
         self.activity = Activity.IDLE
-        self.ctl.resume_manual(self, t)
+        self.host.resume_manual(self, t)
 
     def _limit_stop(self, t: float, end: str) -> None:
         self.timer = None
@@ -419,7 +385,7 @@ class Axis:
         self.activity = Activity.IDLE
         self.velocity_cmd = 0.0
         if activity in (Activity.SPIN, Activity.VELOCITY):
-            self.ctl.log_error(LIMIT_CODES[end])
+            self.host.log_error(LIMIT_CODES[end])
 
     def nudge(self, t: float, delta_counts: float) -> None:
         """Wheel motion: a relative move that is not busy (MS-84)."""
@@ -445,7 +411,7 @@ class Axis:
         self.wheel_goal = None
         self.target = round_half_away(goal)
         self.activity = Activity.IDLE
-        self.ctl.resume_manual(self, t)
+        self.host.resume_manual(self, t)
 
     # ---- disturbances, drift correction, runaway (MS-61, MS-62, MS-88) ------------------------
 
@@ -474,9 +440,9 @@ class Axis:
     def _check_runaway(self, t: float, error_counts: float) -> None:
         """Beyond RU the motor is disabled: whatever the axis was doing stops there (MS-62)."""
         if self._servo_active() and error_counts / self.counts_per_mm > self.s.runaway:
-            self.ctl.disable_motor(self, t)
+            self.host.disable_motor(self, t)
             self._cancel_correction()
-            self.ctl.log_error(30 + self.index)
+            self.host.log_error(30 + self.index)
 
     def _consider_correction(self, t: float) -> None:
         if not self._servo_active() or self.correction is not None:
@@ -487,7 +453,7 @@ class Axis:
         unlimited = self.s.maintain in (1, 2)
         if not unlimited and self.attempts >= CORRECTION_ATTEMPTS:
             return
-        self.correction = self.ctl.scheduler.at(t + self.ctl.servo_s, self._attempt)
+        self.correction = self.host.at(t + self.host.servo_s, self._attempt)
 
     def _attempt(self, t: float) -> None:
         self.correction = None
@@ -499,9 +465,9 @@ class Axis:
         self.attempts += 1
         if self.hold:
             if self.s.maintain in (1, 2) or self.attempts < CORRECTION_ATTEMPTS:
-                self.correction = self.ctl.scheduler.at(t + CORRECTION_SPACING_S, self._attempt)
+                self.correction = self.host.at(t + CORRECTION_SPACING_S, self._attempt)
             else:
-                self.ctl.log_error(60 + self.index)
+                self.host.log_error(60 + self.index)
             return
         self.sample(t)
         self.activity = Activity.CORRECT
@@ -529,7 +495,7 @@ class Axis:
         if not self.traj.moving(t) and self.activity is Activity.IDLE:
             return False
         self.stop(t)
-        self.ctl.log_error(20 + self.index)
+        self.host.log_error(20 + self.index)
         return True
 
     def power_off(self, t: float) -> None:

@@ -64,7 +64,7 @@ class Buttons:
             return
         if name == "zero" and self.ctl.card.button_zero_normal != 0:
             self.ctl.halt_all(t)
-        self.ctl.scheduler.at(t + ms / 1000, lambda due: self.release(name, ms, due))
+        self.ctl.at(t + ms / 1000, lambda due: self.release(name, ms, due))
 
     def release(self, name: str, ms: float, t: float) -> None:
         press = classify(ms)
@@ -75,10 +75,9 @@ class Buttons:
         self.run(name, press, t)
 
     def run(self, name: str, press: str, t: float) -> None:
-        for module in self.ctl.modules_by_priority():
-            if module.button(name, press, t):
-                return
-        self.run_function(self.function_for(name, press), t)
+        """Modules claim a press first, by priority (MS-85); else its assigned function runs."""
+        if not self.ctl.modules.button(name, press, t):
+            self.run_function(self.function_for(name, press), t)
 
     def function_for(self, name: str, press: str) -> int:
         card = self.ctl.card
@@ -100,8 +99,7 @@ class Buttons:
             2: self.ctl.move_all_to_zero,
             3: self.toggle,
         }
-        for module in self.ctl.modules.values():
-            table.update(module.button_functions())
+        table.update(self.ctl.modules.button_functions())
         return table
 
     def valid_function(self, number: float) -> bool:

@@ -46,12 +46,14 @@ SILENT = Reply(())
 
 @dataclass
 class Pending:
-    """A command that replies when its operation ends (MS-33): `finish(t)` gives the reply at `due`;
-    HALT cancels it and it then replies `:N-21`."""
+    """A command that replies when its operation ends (MS-33): `finish(t)` gives the reply at `due`,
+    or, with no `due`, when the controller is told the operation ended (a save the host's store
+    has settled). HALT cancels a `haltable` one, which then replies `:N-21`; lines behind it wait."""
 
-    due: float
+    due: float | None
     finish: Callable[[float], Reply]
     cancel: Callable[[float], None] = field(default=lambda t: None)
+    haltable: bool = True
 
 
 @dataclass(frozen=True)

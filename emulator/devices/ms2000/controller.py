@@ -1,10 +1,12 @@
 """The ASI MS-2000 controller model (sans-I/O, emulator/device.py).
 
-This file owns the serial line (garbling, 0xFF control sequences, line assembly, the queue behind a
-blocking command), time (the scheduler), the axes and move groups with their completion effects.
-Power, reset and non-volatile memory are in power.py, the control channel in surface.py, command
-handlers in commands/, low-level frames in lowlevel.py, reports in info.py, buttons in buttons.py,
-TTL in ttl.py, and each firmware module in modules/.
+This file wires the parts together and owns what they share: time (the scheduler), the axes and the
+move groups with their completion effects, manual inputs, output and the host's line settings. The
+parts are collaborators, each given the controller: the command line in interpreter.py, power,
+reset and flash in power.py, the control channel in surface.py, command handlers in commands/,
+low-level frames in lowlevel.py, reports in info.py, buttons in buttons.py, TTL in ttl.py. Axes see
+the controller as an `AxisHost` (axis.py) and firmware modules as a `ModuleHost` (modules/host.py);
+module hooks are called only through `self.modules`, a ModuleSet (modules/moduleset.py).
 """
 
 from __future__ import annotations
@@ -14,27 +16,24 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from emulator.device import MAIN, Device, Emission, HostServices, LineSettings
+from emulator.device import MAIN, Device, Emission, HostLine, HostServices, LineSettings
 from emulator.devices.ms2000.axis import LOWER, UPPER, Activity, Axis
 from emulator.devices.ms2000.buttons import TTL_ENABLE_BIT, Buttons
-from emulator.devices.ms2000.calls import Call, CommandError, Pending, Rendered, Reply
+from emulator.devices.ms2000.calls import Rendered, Reply
 from emulator.devices.ms2000.commands import BaseCommands
 from emulator.devices.ms2000.config import baud_of
-from emulator.devices.ms2000.flash import Flash
+from emulator.devices.ms2000.interpreter import Interpreter
 from emulator.devices.ms2000.lowlevel import LowLevel
-from emulator.devices.ms2000.modules import MODULES, Module
-from emulator.devices.ms2000.power import PowerMixin
+from emulator.devices.ms2000.modules.moduleset import ModuleSet
+from emulator.devices.ms2000.power import Power
 from emulator.devices.ms2000.scheduler import Scheduler, Timer
-from emulator.devices.ms2000.settings import (
-    CardAuto,
-)
-from emulator.devices.ms2000.surface import ControlSurfaceMixin
+from emulator.devices.ms2000.settings import CardAuto
+from emulator.devices.ms2000.surface import ControlSurface
 from emulator.devices.ms2000.ttl import BASE_OUT_MODES, Ttl
 from emulator.motion import round_half_away
-from emulator.nvstore import NvStore
 from emulator.profile import Profile
 from protocols import ms2000 as proto
-from protocols.ms2000 import ErrorCode, Shape
+from protocols.ms2000 import Shape
 
 ERROR_LOG_SIZE = 64
 TRAJECTORY_SIZE = 500
@@ -61,44 +60,40 @@ def garble(data: bytes) -> bytes:
     return bytes(out)
 
 
-class MS2000(PowerMixin, ControlSurfaceMixin, Device):
+class MS2000(Device):
     def __init__(self, name: str, profile: Profile, now: float, services: HostServices) -> None:
         super().__init__(name, profile, now, services)
         self.cfg = profile.config
         self.knobs = self.cfg.knobs
         self.servo_s = self.cfg.servo_ms / 1000
         self.scheduler = Scheduler()
-        self._now = now
-        identity = {
-            "build": self.cfg.build_name,
-            "version": self.cfg.version,
-            "axes": list(self.cfg.motor_axes),
-        }
-        self.flash = Flash(NvStore(services.state_dir, self.cfg.device_id), identity, self.storage_result)
+        #: the latest device time the model was called at
+        self.now = now
+        self.power = Power(self)
         self.axes = [
             Axis(
                 self,
                 i,
                 letter,
                 self.cfg.axes[letter],
-                self._factory_axis(letter),
-                self.factory_auto(letter),
+                self.power.factory_axis(letter),
+                self.power.factory_auto(letter),
                 now,
             )
             for i, letter in enumerate(self.cfg.motor_axes)
         ]
-        self.card = self._factory_card()
+        self.card = self.power.factory_card()
         self.card_auto = CardAuto()
-        self.modules: dict[str, Module] = {n: MODULES[n](self) for n in self.cfg.modules if n in MODULES}
+        self.modules = ModuleSet(self, self.cfg.modules)
         self.ttl = Ttl(self)
         self.buttons = Buttons(self)
         self.low = LowLevel(self)
-        self.commands = BaseCommands(self)
-        self.handlers: dict[str, Callable[[Call], Reply | Pending]] = self.commands.table()
+        handlers = BaseCommands(self).table()
+        handlers.update(self.modules.handlers())
         self.shapes = {key: shape for key, (shape, _) in proto.QUERY_SHAPES.items()}
-        for module in self.modules.values():
-            self.handlers.update(module.handlers())
-            self.shapes.update({key: shape for key, (shape, _) in module.query_shapes.items()})
+        self.shapes.update(self.modules.query_shapes())
+        self.interpreter = Interpreter(self, handlers)
+        self.surface = ControlSurface(self)
         self.error_log: deque[int] = deque(maxlen=ERROR_LOG_SIZE)
         self.trajectory_log: deque[str] = deque(maxlen=TRAJECTORY_SIZE)
         self.moves = 0
@@ -112,34 +107,28 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
         self.ensync_level = 0
         self.az_fail: set[str] = set()
         self.last_relative: list[tuple[str, float | None]] = []
-        self.low_level = False
-        self._line = bytearray()
-        self._overflow = False
-        self._ff = False
-        self._junk = False
-        self._queue: deque[bytes | None] = deque()
-        self._pending: tuple[Pending, bool, Timer] | None = None
-        self._silenced = False
-        self._host_seen: LineSettings | None = None
+        self.booted_at = now
+        self._host_seen: HostLine | None = None
         self._host_declared: dict[str, Any] = {}
-        self._booted_at = now
-        self._clock_timer: Timer | None = None
-        self._saved_positions: tuple[int, ...] | None = None
-        self._power_up(now, cold=True)
+        self.power.power_up(now, cold=True)
 
     # ---- Device contract: time ----------------------------------------------------------------
 
     def _touch(self, now: float) -> None:
-        if now > self._now:
-            self._now = now
+        if now > self.now:
+            self.now = now
 
     def advance(self, now: float) -> None:
         self._touch(now)
         self.scheduler.run_due(now)
-        self._persist_idle_positions(now)
+        if self.power.positions_dirty:
+            self.power.persist_idle_positions(now)
 
     def next_deadline(self) -> float | None:
         return self.scheduler.next_due()
+
+    def at(self, due: float, action: Callable[[float], None]) -> Timer:
+        return self.scheduler.at(due, action)
 
     def push_event(self, event: dict[str, Any]) -> None:
         self._events.append(event)
@@ -149,7 +138,7 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
     def line_settings(self, channel: str = MAIN) -> LineSettings:
         return LineSettings(self.baud, 8, "none", self.card.stop_bits, False, False)
 
-    def line_changed(self, host: LineSettings | None, now: float, channel: str = MAIN) -> None:
+    def line_changed(self, host: HostLine | None, now: float, channel: str = MAIN) -> None:
         self._touch(now)
         self._host_seen = host
         # the transport now reports what it can see; declarations of what it cannot see stay
@@ -159,17 +148,21 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
             else {k: v for k, v in self._host_declared.items() if k in ("data_bits", "parity")}
         )
 
-    def host_line(self) -> LineSettings | None:
-        seen = self._host_seen or LineSettings()
+    def declare_host(self, settings: dict[str, Any]) -> None:
+        """Host settings the transport cannot see, declared on the control channel (MS-4)."""
+        self._host_declared.update(settings)
+
+    def host_line(self) -> HostLine | None:
+        seen = self._host_seen or HostLine()
         if self._host_seen is None and not self._host_declared:
             return None
         merged = {
             n: getattr(seen, n) for n in ("baud", "data_bits", "parity", "stop_bits", "rtscts", "xonxoff")
         }
         merged.update(self._host_declared)
-        return LineSettings(**merged)
+        return HostLine(**merged)
 
-    def _garbles(self, host: LineSettings | None = None) -> bool:
+    def garbles(self, host: HostLine | None = None) -> bool:
         host = host or self.host_line()
         if host is None or self.knobs.line_mismatch != "garble":
             return False
@@ -179,9 +172,9 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
             for n in ("baud", "data_bits", "parity")
         )
 
-    def mismatch_effect(self, host: LineSettings, channel: str = MAIN) -> str:
+    def mismatch_effect(self, host: HostLine, channel: str = MAIN) -> str:
         own = self.line_settings()
-        if self._garbles(host):
+        if self.garbles(host):
             return "traffic will be garbled (line_mismatch=garble)"
         if any(getattr(host, n) not in (None, getattr(own, n)) for n in ("baud", "data_bits", "parity")):
             return "the mismatch is ignored (line_mismatch=ignore)"
@@ -191,136 +184,38 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
 
     def receive(self, data: bytes, now: float, channel: str = MAIN) -> None:
         self._touch(now)
-        if channel != MAIN or self._silenced:
+        if channel != MAIN or self.interpreter.silenced:
             return
-        if self._garbles():
-            data = garble(data)
-            self._junk = True
-        elif self._junk:
-            self._drop_junk()
-        for byte in data:
-            if self._silenced:
-                break
-            self._byte(byte, now)
+        garbled = self.garbles()
+        self.interpreter.feed(garble(data) if garbled else data, now, garbled)
         self.scheduler.run_due(now)
-        self._persist_idle_positions(now)
+        if self.power.positions_dirty:
+            self.power.persist_idle_positions(now)
 
-    def _drop_junk(self) -> None:
-        """MS-4 [choice]: what a mismatched host left half-assembled is dropped once its settings
-        match again, so its first line at the right settings is read cleanly (TV-120)."""
-        self._junk = False
-        self._line.clear()
-        self._overflow = False
-        self.low.decoder.reset()
+    # ---- Device contract: control channel, non-volatile memory ----------------------------------
 
-    def _byte(self, byte: int, t: float) -> None:
-        if self._ff:
-            self._ff = False
-            self._control_sequence(byte, t)
-        elif byte == proto.CONTROL:
-            self._ff = True
-        elif self.low_level:
-            self.low.feed(byte, t)
-        elif byte == 0x0D:
-            line = None if self._overflow else bytes(self._line)
-            self._line.clear()
-            self._overflow = False
-            self._on_line(line, t)
-            self.scheduler.run_due(t)
-        elif len(self._line) >= self.knobs.max_line:
-            self._overflow = True
-        else:
-            self._line.append(byte)
+    def observe(self, name: str, now: float) -> Any:
+        self._touch(now)
+        return self.surface.observe(name, self.now)
 
-    def _control_sequence(self, byte: int, t: float) -> None:
-        if byte == 0x42:  # 'B'
-            if "LL COMMANDS" in self.cfg.modules:
-                self.low_level = True
-                self._line.clear()
-                self._overflow = False
-                self.low.reset()
-        elif byte == 0x41:  # 'A'
-            self.low_level = False
-            self.low.decoder.reset()
-        elif byte == 0x52:  # 'R'
-            self.software_reset(t)
-        elif byte == 0x48:  # 'H'
-            self.card.vb_decimals = 1
-        elif byte == 0x54:  # 'T'
-            self.card.vb_decimals = 0
+    def snapshot(self) -> dict[str, Any]:
+        return self.surface.snapshot(self.now)
 
-    def _on_line(self, line: bytes | None, t: float) -> None:
-        if self._pending is not None:
-            if line is not None and self._is_halt(line):
-                self._cancel_pending(t, reply=True)
-                self._execute(line, t)
-                self._drain(t)
-            else:
-                self._queue.append(line)
-            return
-        self._execute(line, t)
+    def control_input(self, name: str, params: dict[str, Any], now: float) -> Any:
+        self._touch(now)
+        result = self.surface.control_input(name, params, now)
+        self.scheduler.run_due(now)
+        return result
 
-    @staticmethod
-    def _is_halt(line: bytes) -> bool:
-        spec = proto.split_command(line.decode("latin-1")).spec
-        return spec is not None and spec.key == "\\"
+    def control_names(self) -> dict[str, list[str]]:
+        return self.surface.names()
 
-    def _execute(self, line: bytes | None, t: float) -> None:
-        cr_only = bool(self.card.vb_flags & 8)
-        result = self._dispatch(line, t)
-        if isinstance(result, Pending):
-            timer = self.scheduler.at(result.due, self._finish_pending)
-            self._pending = (result, cr_only, timer)
-        else:
-            self._send(result, t, cr_only)
+    def forget_nonvolatile(self) -> None:
+        self.power.forget()
 
-    def _dispatch(self, line: bytes | None, t: float) -> Reply | Pending:
-        if line is None:
-            return self.error(ErrorCode.UNDEFINED)
-        text = line.decode("latin-1")
-        if proto.is_blank(text):
-            return (
-                Reply(())
-                if self.knobs.empty_line_reply == "ignore"
-                else self.error(ErrorCode.UNKNOWN_COMMAND)
-            )
-        parts = proto.split_command(text)
-        handler = self.handlers.get(parts.spec.key) if parts.spec is not None else None
-        if parts.spec is None or handler is None:
-            return self.error(ErrorCode.UNKNOWN_COMMAND)
-        call = Call(parts.spec, tuple(proto.parse_items(parts.args)), parts.args, t)
-        try:
-            return handler(call)
-        except CommandError as exc:
-            return self.error(exc.code)
-
-    def _finish_pending(self, t: float) -> None:
-        if self._pending is None:
-            return
-        pending, cr_only, _ = self._pending
-        self._pending = None
-        self._send(pending.finish(t), t, cr_only)
-        self._drain(t)
-
-    def _cancel_pending(self, t: float, reply: bool) -> None:
-        if self._pending is None:
-            return
-        pending, cr_only, timer = self._pending
-        self._pending = None
-        timer.cancel()
-        pending.cancel(t)
-        if reply:
-            self._send(self.error(ErrorCode.HALTED), t, cr_only)
-
-    def _drain(self, t: float) -> None:
-        while self._queue and self._pending is None and not self._silenced:
-            self._execute(self._queue.popleft(), t)
-
-    def silence(self) -> None:
-        """`SP` alone: ignore all input until a power cycle (MS-113)."""
-        self._silenced = True
-        self._queue.clear()
-        self._line.clear()
+    def positions_changed(self) -> None:
+        """Something moved positions or their origin: save them at the next rest (MS-111)."""
+        self.power.positions_dirty = True
 
     # ---- output -------------------------------------------------------------------------------
 
@@ -338,12 +233,8 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
             shape = Shape(overrides[key]) if key in overrides else self.shapes.get(key, Shape.A_AXIS)
         return Rendered(shape, self.knobs.reply_trailing_space, self.card.vb_decimals)
 
-    def _send(self, reply: Reply, t: float, cr_only: bool) -> None:
-        if reply.lines:
-            self.send_raw(proto.frame(reply.lines, cr_only), t)
-
     def send_raw(self, data: bytes, t: float) -> None:
-        if self._garbles():
+        if self.garbles():
             data = garble(data)
         self._outbox.append(Emission(t, data))
 
@@ -364,7 +255,7 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
         velocity = axis.traj.vel(t)
         vmax = axis.max_speed * axis.counts_per_mm
         dac = 128 + round(127 * max(-1.0, min(1.0, velocity / vmax))) if vmax else 128
-        ms = round_half_away((t - self._booted_at) * 1000)
+        ms = round_half_away((t - self.booted_at) * 1000)
         self.trajectory_log.append(f"{ms} {axis.letter} {axis.target} {round_half_away(axis.pos(t))} {dac}")
 
     # ---- axes and moves -----------------------------------------------------------------------
@@ -428,8 +319,7 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
             self.unsolicited(":A " + " ".join(self.where(a.units(t)) for a in self.axes), t)
         if group.activity is Activity.MOVE:
             self.ttl.pulse(t)
-        for module in self.modules.values():
-            module.move_complete(group.landed, t)
+        self.modules.move_complete(group.landed, t)
 
     def halt_all(self, t: float) -> bool:
         """Stop every motion and module activity (MS-76); True if a commanded move was running."""
@@ -437,8 +327,7 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
         for axis in self.axes:
             self.leave_group(axis)
             axis.stop(t)
-        for module in self.modules.values():
-            module.halt(t)
+        self.modules.halt(t)
         return busy
 
     def zero_all(self, t: float) -> None:
@@ -446,6 +335,7 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
         for axis in self.axes:
             axis.sample(t)
             axis.origin += axis.user_mm(t)
+        self.positions_changed()  # the origin moved: saved like a rest (MS-111)
 
     def move_all_to_zero(self, t: float) -> None:
         self.start_moves([(a, a.counts_of(0.0)) for a in self.axes], t)
@@ -485,13 +375,13 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
         if velocity:
             axis.manual(t, velocity)
 
-    def _set_joystick(self, x: float, y: float, t: float) -> None:
+    def set_joystick(self, x: float, y: float, t: float) -> None:
         self.joystick = (x, y)
         for axis in self.axes:
             if axis.s.input_device in (2, 3):
                 axis.manual(t, self.joystick_velocity(axis))
 
-    def _turn_wheel(self, counts: float, t: float) -> None:
+    def turn_wheel(self, counts: float, t: float) -> None:
         ratio = 1.0 if self.buttons.fast else self.card.js_slow / self.card.js_fast
         um = counts * self.cfg.wheel_um_per_count * self.card.js_wheel / 100 * ratio
         for axis in self.axes:
@@ -514,50 +404,34 @@ class MS2000(PowerMixin, ControlSurfaceMixin, Device):
 
     # ---- TTL and ENSYNC -----------------------------------------------------------------------
 
-    def out0_module(self, mode: int) -> Module | None:
-        return next((m for m in self.modules.values() if mode in m.out0_modes), None)
-
     def out0_modes(self) -> set[int]:
-        modes = set(BASE_OUT_MODES)
-        for module in self.modules.values():
-            modes |= module.out0_modes
-        return modes
-
-    def in0_module(self, mode: int) -> Module | None:
-        return next((m for m in self.modules.values() if mode in m.in0_modes), None)
+        return set(BASE_OUT_MODES) | self.modules.out0_modes()
 
     def in0_available(self, mode: int) -> bool:
-        if mode == 0:
-            return True
-        module = self.in0_module(mode)
-        interrupt = any(m.provides_in0_interrupt for m in self.modules.values())
-        return module is not None and interrupt
+        return self.modules.in0_available(mode)
 
     def in0_edge(self, t: float) -> None:
         """A rising edge on IN0 (MS-90); BE bit 4 disables the TTL inputs (MS-86)."""
         if not self.card.button_enable & TTL_ENABLE_BIT:
             return
-        self.in0_function(t, self.card.ttl_in)
+        self.in0_function(self.card.ttl_in, t)
 
-    def in0_function(self, t: float, mode: int) -> None:
-        module = self.in0_module(mode) if mode else None
-        if module is not None:
-            module.in0_trigger(mode, t)
+    def in0_function(self, mode: int, t: float) -> None:
+        self.modules.in0_trigger(mode, t)
+
+    def refresh_out0(self, t: float) -> None:
+        self.ttl.refresh(t)
+
+    def toggle_out0(self, t: float) -> None:
+        self.ttl.toggle(t)
 
     def ensync_toggle(self) -> None:
         self.ensync_level ^= 1
 
-    # ---- modules ------------------------------------------------------------------------------
-
-    def modules_by_priority(self) -> list[Module]:
-        return sorted(self.modules.values(), key=lambda m: m.button_priority)
-
     def report_axes(self) -> list[Axis]:
         """Axes reported by IN0 mode 5: a module's selection (RING BUFFER's `RM Y`, MS-RB-4) or all."""
-        masks = [m for m in (module.report_mask() for module in self.modules.values()) if m is not None]
-        if not masks:
-            return list(self.axes)
-        return [a for a in self.axes if masks[0] & (1 << a.index)]
+        mask = self.modules.report_mask()
+        return list(self.axes) if mask is None else [a for a in self.axes if mask & (1 << a.index)]
 
     # ---- traffic log --------------------------------------------------------------------------
 

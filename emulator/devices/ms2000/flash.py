@@ -1,4 +1,4 @@
-"""Layout of the controller's non-volatile memory inside the device's NvStore (MS-111, MS-112).
+"""Layout of the controller's non-volatile memory inside the store the host hands in (MS-111, MS-112).
 
     {"format": 1,
      "identity": {"build": ..., "version": ..., "axes": [...]},
@@ -17,25 +17,36 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from emulator.nvstore import NvStore, StorageError
+from emulator.device import HostServices, Store
+from emulator.nvstore import StorageError
 
 FORMAT = 1
 
 
 class Flash:
-    """The layout above on top of a store. Every store operation's outcome goes to `on_result`
-    (None after a successful save, the StorageError of a failed one), so the controller can flag
-    it; the controller itself carries on from the in-memory copy either way."""
+    """The layout above on a store the host hands in (the model never sees a file). Every save's
+    outcome goes to `on_result` (None once it is on disk, else its StorageError), so the controller
+    can flag it; the controller carries on from the in-memory copy either way. `settled` is False
+    while a save is still on its way to the disk (a store that writes in the background)."""
 
     def __init__(
-        self, store: NvStore, identity: dict[str, Any], on_result: Callable[[StorageError | None], None]
+        self,
+        services: HostServices,
+        device_id: str,
+        identity: dict[str, Any],
+        on_result: Callable[[StorageError | None], None],
     ) -> None:
-        self.store = store
         self.identity = identity
         self.on_result = on_result
+        self.store: Store = services.open_store(device_id, self._settled)
         self.data: dict[str, Any] = {}
+        self.settled = True
         #: stored keys already reported as unusable since the last load (one warning per key per load)
         self.reported: set[str] = set()
+
+    @property
+    def persistent(self) -> bool:
+        return self.store.persistent
 
     def load(self) -> bool:
         """Read the store; False (and an empty flash) when it belongs to another identity."""
@@ -51,19 +62,16 @@ class Flash:
         self.data = data
         return True
 
-    def _commit(self) -> None:
-        self.data["format"] = FORMAT
-        self.data["identity"] = self.identity
-        try:
-            self.store.save(self.data)
-        except StorageError as failure:
-            self.on_result(failure)
-        else:
-            self.on_result(None)
-
     def write(self, **sections: Any) -> None:
         self.data.update(sections)
-        self._commit()
+        self.data["format"] = FORMAT
+        self.data["identity"] = self.identity
+        self.settled = False
+        self.store.save(self.data)
+
+    def _settled(self, failure: StorageError | None) -> None:
+        self.settled = True
+        self.on_result(failure)
 
     def erase(self) -> None:
         """Factory-fresh flash; raises StorageError (flash unchanged) when the store cannot."""
@@ -73,6 +81,7 @@ class Flash:
             self.on_result(failure)
             raise
         self.data = {}
+        self.settled = True
 
     @property
     def pending_factory(self) -> bool:

@@ -6,6 +6,7 @@ import math
 from typing import TYPE_CHECKING
 
 from emulator.devices.ms2000.config import INPUT_DEVICES
+from emulator.devices.ms2000.status import move_stat
 from emulator.motion import round_half_away
 from protocols.ms2000 import fixed
 
@@ -83,7 +84,7 @@ def info_block(ctl: MS2000, axis: Axis, t: float) -> list[str]:
             _item("Motor Enable", "1" if axis.motor_on(t) else "0"),
         ),
         _row(
-            _item("CMD_stat", "MOVING" if axis.busy(t) else "NO_MOVE"), _item("Move_stat", axis.move_stat(t))
+            _item("CMD_stat", "MOVING" if axis.busy(t) else "NO_MOVE"), _item("Move_stat", move_stat(axis, t))
         ),
         _row(
             _item("Current pos", fixed(axis.user_mm_of(position), 4), " (mm)"),
@@ -117,7 +118,4 @@ def build_lines(ctl: MS2000) -> list[str]:
         cfg.bootldr,
         cfg.hdwr,
     ]
-    for name in cfg.modules:
-        module = ctl.modules.get(name)
-        lines.append(module.bu_line() if module is not None else name)
-    return lines
+    return [*lines, *ctl.modules.bu_lines()]

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from emulator.devices.ms2000.status import status_byte
 from emulator.motion import round_half_away
 from protocols.ms2000 import LLCommand, LLFrame, LLFrameDecoder, decode_int24, encode_int24
 
@@ -42,7 +43,7 @@ class LowLevel:
             return
         ctl = self.ctl
         command = LLCommand(frame.command)
-        status = axis.status_byte(t, ctl.knobs.status_bit5_up_is_one, low_level=True)
+        status = status_byte(axis, t, ctl.knobs.status_bit5_up_is_one, low_level=True)
         if command is LLCommand.BUSY:
             ctl.send_raw(b"B" if axis.busy(t) else b"b", t)
         elif command is LLCommand.POSITION:

@@ -1,14 +1,20 @@
-"""Power-up, software reset and non-volatile memory of the controller (MS-110…MS-113), mixed into
-MS2000. Factory values come from the profile; `SS Z` settings, auto-saved settings and positions
-live in the device's flash (flash.py)."""
+"""Power-up, software reset and non-volatile memory of the controller (MS-110…MS-113).
+
+Factory values come from the profile; `SS Z` settings, auto-saved settings and positions live in the
+device's flash (flash.py), a store the host hands in. Positions are saved whenever the stage comes
+to rest (an axis reports each rest, commands that move the origin report theirs), checked once at the
+end of the model call that caused it: a command that moves nothing costs nothing here.
+"""
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from emulator.device import ControlError
 from emulator.devices.ms2000.axis import LOWER, UPPER
+from emulator.devices.ms2000.calls import Pending, Reply
 from emulator.devices.ms2000.config import baud_of
+from emulator.devices.ms2000.flash import Flash
 from emulator.devices.ms2000.settings import (
     AxisAuto,
     AxisSettings,
@@ -21,6 +27,10 @@ from emulator.devices.ms2000.settings import (
 from emulator.motion import round_half_away
 from emulator.nvstore import StorageError
 
+if TYPE_CHECKING:
+    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.scheduler import Timer
+
 CLOCK_MARK_S = 600.0
 CLOCK_MARK_CODE = 255
 IDENTITY_MISMATCH_CODE = 55
@@ -28,11 +38,23 @@ IDENTITY_MISMATCH_CODE = 55
 REPR_LIMIT = 40
 
 
-class PowerMixin:
-    """Part of MS2000: works on its axes, card settings, modules, flash and scheduler."""
+class Power:
+    """The controller's power states and its flash; works on the controller's axes and settings."""
 
-    def _factory_axis(self, letter: str) -> AxisSettings:
-        a = self.cfg.axes[letter]
+    def __init__(self, ctl: MS2000) -> None:
+        self.ctl = ctl
+        cfg = ctl.cfg
+        identity = {"build": cfg.build_name, "version": cfg.version, "axes": list(cfg.motor_axes)}
+        self.flash = Flash(ctl.services, cfg.device_id, identity, self.storage_result)
+        #: positions may differ from the flash's: checked at the end of the current model call
+        self.positions_dirty = False
+        self._saved_positions: tuple[int, ...] | None = None
+        self._clock_timer: Timer | None = None
+
+    # ---- factory values -----------------------------------------------------------------------
+
+    def factory_axis(self, letter: str) -> AxisSettings:
+        a = self.ctl.cfg.axes[letter]
         return AxisSettings(
             speed=a.speed_mm_s,
             accel_ms=a.accel_ms,
@@ -59,61 +81,58 @@ class PowerMixin:
         )
 
     def factory_auto(self, letter: str) -> AxisAuto:
-        a = self.cfg.axes[letter]
+        a = self.ctl.cfg.axes[letter]
         return AxisAuto(a.soft_lower_mm, a.soft_upper_mm, a.home_mm, a.aa)
 
-    def _factory_card(self) -> CardSettings:
-        return CardSettings(stop_bits=int(self.cfg.line.stop_bits))
+    def factory_card(self) -> CardSettings:
+        return CardSettings(stop_bits=int(self.ctl.cfg.line.stop_bits))
 
-    def _power_up(self, t: float, cold: bool) -> None:
-        same = self.flash.load()
-        if self.flash.pending_factory:
-            self.flash.data.pop("saved", None)
-            self.flash.write(pending_factory=False)
-        self.baud = baud_of(self.dip["sw4"], self.dip["sw5"])
+    # ---- power-up and reset (MS-112) ----------------------------------------------------------
+
+    def power_up(self, t: float, cold: bool) -> None:
+        ctl = self.ctl
+        flash = self.flash
+        same = flash.load()
+        if flash.pending_factory:
+            flash.data.pop("saved", None)
+            flash.write(pending_factory=False)
+        ctl.baud = baud_of(ctl.dip["sw4"], ctl.dip["sw5"])
         if cold:
-            physical = self._section(self.flash.data, "physical") or {}
-            for axis in self.axes:
+            physical = self._section(flash.data, "physical") or {}
+            for axis in ctl.axes:
                 counts = self._number(physical, axis.hw_letter, "physical")
                 if counts is not None:
                     axis.traj = axis.traj.rest(t, counts)
         self._restore_settings()
-        positions = self._section(self.flash.data, "positions") or {}  # null after SP X=1
-        for axis in self.axes:
+        positions = self._section(flash.data, "positions") or {}  # null after SP X=1
+        for axis in ctl.axes:
             saved = self._number(positions, axis.hw_letter, "positions")
             axis.origin = 0.0
             here = axis.user_mm(t)
             axis.origin = here - saved if saved is not None else here
         self._restart(t)
         if not same:
-            self.log_error(IDENTITY_MISMATCH_CODE)
+            ctl.log_error(IDENTITY_MISMATCH_CODE)
 
     def _restore_settings(self) -> None:
+        ctl = self.ctl
         saved = self._section(self.flash.data, "saved") or {}
         auto = self._section(self.flash.data, "auto") or {}
         saved_axes = self._section(saved, "axes", "saved") or {}
         auto_axes = self._section(auto, "axes", "auto") or {}
         reject = self._unusable
-        for axis in self.axes:
+        for axis in ctl.axes:
             letter = axis.hw_letter
             axis.s = from_plain(
-                self._factory_axis(letter), saved_axes.get(letter), f"saved.axes.{letter}", reject
+                self.factory_axis(letter), saved_axes.get(letter), f"saved.axes.{letter}", reject
             )
             axis.auto = from_plain(
                 self.factory_auto(letter), auto_axes.get(letter), f"auto.axes.{letter}", reject
             )
             axis.letter = chr(axis.s.rename) if axis.s.rename else letter
-        self.card = from_plain(self._factory_card(), saved.get("card"), "saved.card", reject)
-        self.card_auto = from_plain(CardAuto(), auto.get("card"), "auto.card", reject)
-        saved_modules = self._section(saved, "modules", "saved") or {}
-        for name, module in self.modules.items():
-            data = self._section(saved_modules, name, "saved.modules")
-            module.restore(data)
-            # modules check their own values; one that did not take a stored value kept its factory value
-            kept = module.save()
-            for key, value in (data or {}).items():
-                if key in kept and kept[key] is not value and kept[key] != value:
-                    reject(f"saved.modules.{name}.{key}", value)
+        ctl.card = from_plain(self.factory_card(), saved.get("card"), "saved.card", reject)
+        ctl.card_auto = from_plain(CardAuto(), auto.get("card"), "auto.card", reject)
+        ctl.modules.restore(self._section(saved, "modules", "saved") or {}, reject)
 
     def _section(self, mapping: dict[str, Any], key: str, within: str = "") -> dict[str, Any] | None:
         """The stored mapping `mapping[key]`; None when absent or (reported) not a mapping."""
@@ -142,13 +161,14 @@ class PowerMixin:
         text = repr(value)
         if len(text) > REPR_LIMIT:
             text = text[: REPR_LIMIT - 3] + "..."
-        self.log.warning(
-            "%s: stored %s = %s cannot be used; keeping the factory value", self.name, path, text
+        self.ctl.log.warning(
+            "%s: stored %s = %s cannot be used; keeping the factory value", self.ctl.name, path, text
         )
 
     def _restart(self, t: float) -> None:
         """What power-up and reset share: motion stopped, volatile state cleared, clocks restarted."""
-        for axis in self.axes:
+        ctl = self.ctl
+        for axis in ctl.axes:
             axis.power_off(t)
             axis.enabled = True
             axis.group = None
@@ -156,116 +176,135 @@ class PowerMixin:
             axis.target = round_half_away(axis.pos(t))
             axis.reset_extremes(t)
             axis.ensync_mm = None
-        self.ensync_level = 0
-        self.error_log.clear()
-        self.trajectory_log.clear()
-        self.user_counter = 0
-        self.lcd_text = None
-        self.low_level = False
-        self._line.clear()
-        self._overflow = False
-        self.last_relative = []
-        self.buttons.reset()
-        self.low.reset()
-        self._booted_at = t
+        ctl.ensync_level = 0
+        ctl.error_log.clear()
+        ctl.trajectory_log.clear()
+        ctl.user_counter = 0
+        ctl.lcd_text = None
+        ctl.interpreter.restart()
+        ctl.last_relative = []
+        ctl.buttons.reset()
+        ctl.low.reset()
+        ctl.booted_at = t
         if self._clock_timer is not None:
             self._clock_timer.cancel()
-        self._clock_timer = self.scheduler.at(t + CLOCK_MARK_S, self._clock_mark)
-        for module in self.modules.values():
-            module.reset(t)
-        self.ttl.reset(t)
+        self._clock_timer = ctl.at(t + CLOCK_MARK_S, self._clock_mark)
+        ctl.modules.reset(t)
+        ctl.ttl.reset(t)
+        # what the flash holds counts as saved: a reset alone writes nothing (MS-112)
         self._saved_positions = self._position_key()
+        self.positions_dirty = False
 
     def _clock_mark(self, t: float) -> None:
-        if self.knobs.error_log_clock_marks:
-            self.log_error(CLOCK_MARK_CODE)
-        self._clock_timer = self.scheduler.at(t + CLOCK_MARK_S, self._clock_mark)
+        if self.ctl.knobs.error_log_clock_marks:
+            self.ctl.log_error(CLOCK_MARK_CODE)
+        self._clock_timer = self.ctl.at(t + CLOCK_MARK_S, self._clock_mark)
 
     def software_reset(self, t: float) -> None:
         """`~` and 0xFF 'R' (MS-112): saved settings back, positions 0, limits keep their place."""
-        self._cancel_pending(t, reply=False)
-        for axis in self.axes:
+        ctl = self.ctl
+        ctl.interpreter.cancel_pending(t, reply=False)
+        for axis in ctl.axes:
             axis.stop(t)
         self._restore_settings()
-        for axis in self.axes:
+        for axis in ctl.axes:
             axis.origin = 0.0
             axis.origin = axis.user_mm(t)
         self._restart(t)
         # lines that waited behind a blocking command the reset cancelled still run, in order (MS-13)
-        self._drain(t)
+        ctl.interpreter.drain(t)
 
     def power_cycle(self, t: float) -> None:
         """Power off (positions saved unless `SP X=1`) and on (MS-112)."""
-        self._cancel_pending(t, reply=False)
-        self._queue.clear()
-        for axis in self.axes:
+        ctl = self.ctl
+        ctl.interpreter.cancel_pending(t, reply=False)
+        ctl.interpreter.power_off()
+        for axis in ctl.axes:
             axis.stop(t)
         self.save_positions(t)
-        self._silenced = False
-        self._ff = False
-        self._power_up(t, cold=False)
+        self.power_up(t, cold=False)
+
+    # ---- non-volatile memory (MS-110, MS-111) -------------------------------------------------
 
     def _position_key(self) -> tuple[int, ...]:
-        t = self._now
-        return (self.card.inhibit_position_save, *(round_half_away(a.units(t) * 1000) for a in self.axes))
+        t = self.ctl.now
+        axes = self.ctl.axes
+        return (self.ctl.card.inhibit_position_save, *(round_half_away(a.units(t) * 1000) for a in axes))
 
     def save_positions(self, t: float) -> None:
-        physical = {a.hw_letter: a.pos(t) for a in self.axes}
-        positions = (
-            None if self.card.inhibit_position_save else {a.hw_letter: a.user_mm(t) for a in self.axes}
-        )
+        axes = self.ctl.axes
+        physical = {a.hw_letter: a.pos(t) for a in axes}
+        inhibit = self.ctl.card.inhibit_position_save
+        positions = None if inhibit else {a.hw_letter: a.user_mm(t) for a in axes}
         self.flash.write(physical=physical, positions=positions)
         self._saved_positions = self._position_key()
 
-    def _persist_idle_positions(self, t: float) -> None:
-        """With a state directory, positions are written whenever the stage comes to rest, so an
-        emulator killed without a power-off still restarts where it was (MS-111)."""
-        if not self.flash.store.persistent or any(a.traj.moving(t) for a in self.axes):
+    def persist_idle_positions(self, t: float) -> None:
+        """With a persistent store, positions are written whenever the stage comes to rest, so an
+        emulator killed without a power-off still restarts where it was (MS-111). Called at the end
+        of a model call that flagged `positions_dirty`; while something moves, the rest to come
+        flags it again."""
+        self.positions_dirty = False
+        if not self.flash.persistent or any(a.traj.moving(t) for a in self.ctl.axes):
             return
         if self._position_key() != self._saved_positions:
             self.save_positions(t)
 
     def save_settings(self) -> None:
         """SS Z (MS-110, MS-111)."""
+        ctl = self.ctl
         saved = {
-            "axes": {a.hw_letter: to_plain(a.s) for a in self.axes},
-            "card": to_plain(self.card),
-            "modules": {name: m.save() for name, m in self.modules.items()},
+            "axes": {a.hw_letter: to_plain(a.s) for a in ctl.axes},
+            "card": to_plain(ctl.card),
+            "modules": ctl.modules.save(),
         }
         self.flash.write(saved=saved)
-
-    def save_auto(self) -> None:
-        """Settings remembered as soon as they change (SL, SU, HM, AA, CCA X, BCA)."""
-        auto = {"axes": {a.hw_letter: to_plain(a.auto) for a in self.axes}, "card": to_plain(self.card_auto)}
-        self.flash.write(auto=auto)
 
     def schedule_factory_reset(self, pending: bool) -> None:
         """SS X / SS Y."""
         self.flash.write(pending_factory=pending)
 
-    def forget_nonvolatile(self) -> None:
+    def settled_ack(self) -> Reply | Pending:
+        """`SS` acknowledges once its save is on disk, as the firmware does once its flash is
+        written, so a host that saw `:A` may kill the emulator (MS-111). A store writing in the
+        background makes it wait; HALT cannot cut a save short, lines behind it wait (MS-13)."""
+        if self.flash.settled:
+            return self.ctl.ack()
+        return Pending(None, lambda done: self.ctl.ack(), haltable=False)
+
+    def save_auto(self) -> None:
+        """Settings remembered as soon as they change (SL, SU, HM, AA, CCA X, BCA)."""
+        ctl = self.ctl
+        axes = {a.hw_letter: to_plain(a.auto) for a in ctl.axes}
+        self.flash.write(auto={"axes": axes, "card": to_plain(ctl.card_auto)})
+
+    def forget(self) -> None:
         """Erase the device's flash (a factory-fresh controller), e.g. for a host's `reset` op."""
         try:
             self.flash.erase()
         except StorageError as failure:
             raise ControlError(
-                f"{self.name}: factory reset refused, saved settings kept: {failure}"
+                f"{self.ctl.name}: factory reset refused, saved settings kept: {failure}"
             ) from failure
 
     def storage_result(self, failure: StorageError | None) -> None:
         """The outcome of every flash operation (Flash's `on_result`). The controller works on from
-        its in-memory flash and still acks `SS Z`, as a real one does; a failure is flagged
-        (`storage_error`, shown by `ctl list`) and pushed as an event, a successful save clears it."""
+        its in-memory flash and still acks `SS`, as a real one does; a failure is flagged
+        (`storage_error`, shown by `ctl list`) and pushed as an event, a successful save clears it.
+        A settled store releases an `SS` waiting for it."""
+        ctl = self.ctl
         if failure is None:
-            self.storage_error = None
-            return
-        self.storage_error = str(failure)
-        self.push_event(
-            {
-                "ev": "storage_error",
-                "t": self._now,
-                "op": failure.op,
-                "path": str(failure.path),
-                "error": failure.reason,
-            }
-        )
+            ctl.storage_error = None
+        else:
+            ctl.storage_error = str(failure)
+            ctl.push_event(
+                {
+                    "ev": "storage_error",
+                    "t": ctl.now,
+                    "op": failure.op,
+                    "path": str(failure.path),
+                    "error": failure.reason,
+                }
+            )
+        if self.flash.settled:
+            ctl.interpreter.release(ctl.now)

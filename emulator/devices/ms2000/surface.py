@@ -1,39 +1,47 @@
-"""The control channel of the controller (Appendix B): inputs, observables and the LCD, mixed into
-MS2000."""
+"""The control channel of the controller (Appendix B): inputs, observables and the LCD. Modules add
+theirs through the controller's ModuleSet."""
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from emulator.device import ControlError
 from emulator.devices.ms2000.axis import LOWER, UPPER, Activity, Axis
 from emulator.devices.ms2000.buttons import NAMES as BUTTON_NAMES
+from emulator.devices.ms2000.status import status_byte
 from emulator.motion import round_half_away
+
+if TYPE_CHECKING:
+    from emulator.devices.ms2000.controller import MS2000
 
 #: LCD lines are 20 characters (MS-116)
 LCD_WIDTH = 20
 
 
-class ControlSurfaceMixin:
-    """Part of MS2000: the `in`/`get` vocabulary of its control channel."""
+class ControlSurface:
+    """The `in`/`get` vocabulary of the controller's control channel."""
+
+    def __init__(self, ctl: MS2000) -> None:
+        self.ctl = ctl
 
     def lcd(self, t: float) -> list[str]:
         """Two 20-character lines [choice]: positions, then module status (DIP 2 UP) or text."""
-        scale = 25.4 if self.lcd_inches else 1.0
-        top = " ".join(f"{a.letter}{a.user_mm(t) / scale:.3f}" for a in self.axes)
-        if self.dip["sw2"] == "down":
-            bottom = self.lcd_text if self.lcd_text is not None else self.cfg.version
+        ctl = self.ctl
+        scale = 25.4 if ctl.lcd_inches else 1.0
+        top = " ".join(f"{a.letter}{a.user_mm(t) / scale:.3f}" for a in ctl.axes)
+        if ctl.dip["sw2"] == "down":
+            bottom = ctl.lcd_text if ctl.lcd_text is not None else ctl.cfg.version
         else:
-            segments = [s for m in self.modules.values() if (s := m.lcd_segment(t))]
-            up = int(t - self._booted_at)
+            up = int(t - ctl.booted_at)
             clock = f"{up // 3600 % 100:02d}:{up // 60 % 60:02d}:{up % 60:02d}"
-            bottom = " ".join([*segments, clock])
+            bottom = " ".join([*ctl.modules.lcd_segments(t), clock])
         return [top[:LCD_WIDTH].rstrip(), bottom[:LCD_WIDTH].rstrip()]
 
     def _axes_state(self, t: float) -> dict[str, Any]:
+        ctl = self.ctl
         state = {}
-        for axis in self.axes:
+        for axis in ctl.axes:
             axis.sample(t)
             state[axis.letter] = {
                 "machine_counts": round_half_away(axis.pos(t)),
@@ -42,66 +50,59 @@ class ControlSurfaceMixin:
                 "target_user_mm": axis.user_mm_of(axis.target),
                 "min_user_mm": axis.ext_min,
                 "max_user_mm": axis.ext_max,
-                "status_byte": axis.status_byte(t, self.knobs.status_bit5_up_is_one),
-                "position": self.where(axis.units(t)),
+                "status_byte": status_byte(axis, t, ctl.knobs.status_bit5_up_is_one),
+                "position": ctl.where(axis.units(t)),
                 "activity": axis.activity.value,
                 "enabled": axis.enabled,
             }
         return state
 
-    def _observables(self) -> dict[str, Callable[[float], Any]]:
+    def observables(self) -> dict[str, Callable[[float], Any]]:
+        ctl = self.ctl
         table: dict[str, Callable[[float], Any]] = {
-            "baud": lambda t: self.baud,
+            "baud": lambda t: ctl.baud,
             "axes": self._axes_state,
-            "busy": self.busy,
-            "ttl_out0": lambda t: self.ttl.level,
-            "ttl_out0_pwm": lambda t: self.ttl.pwm(),
-            "ttl_in0": lambda t: self.ttl.in0,
-            "ensync_out": lambda t: self.ensync_level,
+            "busy": ctl.busy,
+            "ttl_out0": lambda t: ctl.ttl.level,
+            "ttl_out0_pwm": lambda t: ctl.ttl.pwm(),
+            "ttl_in0": lambda t: ctl.ttl.in0,
+            "ensync_out": lambda t: ctl.ensync_level,
             "lcd": self.lcd,
-            "error_log": lambda t: list(reversed(self.error_log)),
-            "dip": lambda t: dict(self.dip),
-            "mode": lambda t: "silent" if self._silenced else "low" if self.low_level else "high",
-            "host_line": lambda t: None if (h := self.host_line()) is None else h.describe(),
+            "error_log": lambda t: list(reversed(ctl.error_log)),
+            "dip": lambda t: dict(ctl.dip),
+            "mode": lambda t: ctl.interpreter.mode,
+            "host_line": lambda t: None if (h := ctl.host_line()) is None else h.describe(),
         }
-        for module in self.modules.values():
-            if module.observable:
-                table[module.observable] = module.observe
+        table.update(ctl.modules.observables())
         return table
 
-    def observe(self, name: str, now: float) -> Any:
-        self._touch(now)
-        table = self._observables()
+    def observe(self, name: str, t: float) -> Any:
+        table = self.observables()
         if name not in table:
-            raise ControlError(f"{self.name}: no observable {name!r}; known: {', '.join(sorted(table))}")
-        return table[name](self._now)
+            raise ControlError(f"{self.ctl.name}: no observable {name!r}; known: {', '.join(sorted(table))}")
+        return table[name](t)
 
-    def snapshot(self) -> dict[str, Any]:
-        return {name: get(self._now) for name, get in self._observables().items()}
+    def snapshot(self, t: float) -> dict[str, Any]:
+        return {name: get(t) for name, get in self.observables().items()}
 
-    def control_input(self, name: str, params: dict[str, Any], now: float) -> Any:
-        self._touch(now)
+    def control_input(self, name: str, params: dict[str, Any], t: float) -> Any:
         handler = self._inputs().get(name)
         if handler is not None:
-            result = handler(params, now)
-        else:
-            module = next((m for m in self.modules.values() if name in m.inputs), None)
-            if module is None:
-                known = self.control_names()["inputs"]
-                raise ControlError(f"{self.name}: no input {name!r}; known: {', '.join(known)}")
-            result = module.control_input(name, params, now)
-        self.scheduler.run_due(now)
-        return result
+            return handler(params, t)
+        if name not in self.ctl.modules.inputs():
+            known = self.names()["inputs"]
+            raise ControlError(f"{self.ctl.name}: no input {name!r}; known: {', '.join(known)}")
+        return self.ctl.modules.control_input(name, params, t)
 
-    def control_names(self) -> dict[str, list[str]]:
-        inputs = {*self._inputs(), *(i for m in self.modules.values() for i in m.inputs)}
-        return {"inputs": sorted(inputs), "observables": sorted(self._observables())}
+    def names(self) -> dict[str, list[str]]:
+        inputs = {*self._inputs(), *self.ctl.modules.inputs()}
+        return {"inputs": sorted(inputs), "observables": sorted(self.observables())}
 
     def _inputs(self) -> dict[str, Callable[[dict[str, Any], float], Any]]:
         return {
             "host_line": self._in_host_line,
             "dip": self._in_dip,
-            "power_cycle": lambda p, t: self.power_cycle(t) or True,
+            "power_cycle": self._in_power_cycle,
             "joystick": self._in_joystick,
             "wheel": self._in_wheel,
             "button": self._in_button,
@@ -114,11 +115,15 @@ class ControlSurfaceMixin:
             "az_fail": self._in_az_fail,
         }
 
+    def _in_power_cycle(self, params: dict[str, Any], t: float) -> Any:
+        self.ctl.power.power_cycle(t)
+        return True
+
     def _axis_param(self, params: dict[str, Any]) -> Axis:
         letter = params.get("axis")
-        axis = self.axis_named(letter.upper()) if isinstance(letter, str) else None
+        axis = self.ctl.axis_named(letter.upper()) if isinstance(letter, str) else None
         if axis is None:
-            known = ", ".join(a.letter for a in self.axes)
+            known = ", ".join(a.letter for a in self.ctl.axes)
             raise ControlError(f"axis must be one of {known}, got {letter!r}")
         return axis
 
@@ -134,25 +139,25 @@ class ControlSurfaceMixin:
                 raise ControlError(f"host_line: unknown parameter {key!r}; use {', '.join(allowed)}")
             if not allowed[key](value):
                 raise ControlError(f"host_line: bad {key} {value!r}")
-        self._host_declared.update(params)
-        host = self.host_line()
-        return {"host": None if host is None else host.describe(), "garbled": self._garbles()}
+        self.ctl.declare_host(params)
+        host = self.ctl.host_line()
+        return {"host": None if host is None else host.describe(), "garbled": self.ctl.garbles()}
 
     def _in_dip(self, params: dict[str, Any], t: float) -> Any:
         for key, value in params.items():
-            if key not in self.dip or value not in ("up", "down"):
+            if key not in self.ctl.dip or value not in ("up", "down"):
                 raise ControlError(f"dip: expected sw1…sw8 set to 'up' or 'down', got {key}={value!r}")
-        self.dip.update(params)
-        return dict(self.dip)
+        self.ctl.dip.update(params)
+        return dict(self.ctl.dip)
 
     def _in_joystick(self, params: dict[str, Any], t: float) -> Any:
         x = _number(params, "x", 0.0, -1.0, 1.0, "joystick")
         y = _number(params, "y", 0.0, -1.0, 1.0, "joystick")
-        self._set_joystick(x, y, t)
+        self.ctl.set_joystick(x, y, t)
         return True
 
     def _in_wheel(self, params: dict[str, Any], t: float) -> Any:
-        self._turn_wheel(_number(params, "counts", None, -1e6, 1e6, "wheel"), t)
+        self.ctl.turn_wheel(_number(params, "counts", None, -1e6, 1e6, "wheel"), t)
         return True
 
     def _in_button(self, params: dict[str, Any], t: float) -> Any:
@@ -160,20 +165,20 @@ class ControlSurfaceMixin:
         if name not in BUTTON_NAMES:
             raise ControlError(f"button: name must be one of {', '.join(BUTTON_NAMES)}, got {name!r}")
         ms = _number(params, "ms", 100.0, 0.0, 3_600_000.0, "button")
-        self.buttons.press(name, ms, t)
+        self.ctl.buttons.press(name, ms, t)
         return True
 
     def _in_ttl_in0(self, params: dict[str, Any], t: float) -> Any:
         if "pulse_ms" in params:
-            self.ttl.pulse_in0(_number(params, "pulse_ms", None, 0.0, 3_600_000.0, "ttl_in0"), t)
+            self.ctl.ttl.pulse_in0(_number(params, "pulse_ms", None, 0.0, 3_600_000.0, "ttl_in0"), t)
         elif "level" in params:
-            self.ttl.set_in0(int(_number(params, "level", None, 0, 1, "ttl_in0")), t)
+            self.ctl.ttl.set_in0(int(_number(params, "level", None, 0, 1, "ttl_in0")), t)
         else:
             raise ControlError("ttl_in0 needs pulse_ms (a pulse) or level (0 or 1)")
         return True
 
     def _in_ttl_in1(self, params: dict[str, Any], t: float) -> Any:
-        self.ttl.set_in1(int(_number(params, "level", None, 0, 1, "ttl_in1")), t)
+        self.ctl.ttl.set_in1(int(_number(params, "level", None, 0, 1, "ttl_in1")), t)
         return True
 
     def _in_limit(self, params: dict[str, Any], t: float) -> Any:
@@ -189,8 +194,8 @@ class ControlSurfaceMixin:
             moving = axis.activity in (Activity.MOVE, Activity.HOME, Activity.SPIN, Activity.VELOCITY)
             axis.stop(t)
             if moving:
-                self.log_error(34 if end == UPPER else 35)
-                self.axis_finished(axis, t)
+                self.ctl.log_error(34 if end == UPPER else 35)
+                self.ctl.axis_finished(axis, t)
         return True
 
     def _in_disturb(self, params: dict[str, Any], t: float) -> Any:
@@ -207,15 +212,15 @@ class ControlSurfaceMixin:
         group = axis.group
         stalled = axis.stall(t)
         if stalled and group is not None:
-            self.axis_finished(axis, t)
+            self.ctl.axis_finished(axis, t)
         return stalled
 
     def _in_log_error(self, params: dict[str, Any], t: float) -> Any:
-        self.log_error(int(_number(params, "code", None, 0, 65535, "log_error")))
-        return list(reversed(self.error_log))
+        self.ctl.log_error(int(_number(params, "code", None, 0, 65535, "log_error")))
+        return list(reversed(self.ctl.error_log))
 
     def _in_az_fail(self, params: dict[str, Any], t: float) -> Any:
-        self.az_fail.add(self._axis_param(params).hw_letter)
+        self.ctl.az_fail.add(self._axis_param(params).hw_letter)
         return True
 
 

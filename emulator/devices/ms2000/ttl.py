@@ -36,12 +36,8 @@ class Ttl:
         self.apply_mode(t)
 
     def effective(self) -> int:
-        mode = self.ctl.card.ttl_out
-        module = self.ctl.out0_module(mode)
-        level = self.raw
-        if module is not None:
-            driven = module.out0_level()
-            level = self.raw if driven is None else driven
+        driven = self.ctl.modules.out0_level(self.ctl.card.ttl_out)
+        level = self.raw if driven is None else driven
         return level ^ (1 if self.ctl.card.ttl_polarity == -1 else 0)
 
     def refresh(self, t: float) -> None:
@@ -65,7 +61,7 @@ class Ttl:
         if self._pulse is not None:
             self._pulse.cancel()
         self.set_raw(1, t)
-        self._pulse = self.ctl.scheduler.at(t + self.ctl.card.rt_pulse_ms / 1000, self._pulse_end)
+        self._pulse = self.ctl.at(t + self.ctl.card.rt_pulse_ms / 1000, self._pulse_end)
 
     def _pulse_end(self, t: float) -> None:
         self._pulse = None
@@ -76,8 +72,7 @@ class Ttl:
         self.set_raw(1 - self.raw, t)
 
     def pwm(self) -> float:
-        module = self.ctl.out0_module(self.ctl.card.ttl_out)
-        duty = module.out0_pwm() if module is not None else None
+        duty = self.ctl.modules.out0_pwm(self.ctl.card.ttl_out)
         return 0.0 if duty is None else duty
 
     # ---- inputs --------------------------------------------------------------------------------
@@ -92,7 +87,7 @@ class Ttl:
         if self._in0_fall is not None:
             self._in0_fall.cancel()
         self.set_in0(1, t)
-        self._in0_fall = self.ctl.scheduler.at(t + ms / 1000, lambda due: self.set_in0(0, due))
+        self._in0_fall = self.ctl.at(t + ms / 1000, lambda due: self.set_in0(0, due))
 
     def set_in1(self, level: int, t: float) -> None:
         if level == self.in1:

@@ -22,17 +22,20 @@ class Harness:
         overrides: dict[str, Any] | None = None,
         state_dir: Path | None = None,
         t0: float = 0.0,
+        services: HostServices | None = None,
     ) -> None:
         self.profile = profile if isinstance(profile, Profile) else load_profile(profile, overrides)
-        self.state_dir = state_dir
+        #: a state directory is written at once (HostServices' default stores); `services` can
+        #: hand in any store instead, e.g. one that writes only when the test says
+        self.services = services or HostServices(state_dir)
         self.t = t0
-        self.dev = MS2000("dut", self.profile, t0, HostServices(state_dir))
+        self.dev = MS2000("dut", self.profile, t0, self.services)
         self.events: list[dict[str, Any]] = []
         self.emissions: list[tuple[float, bytes]] = []
 
     def restart(self) -> None:
-        """A new model on the same state directory: an emulator restart."""
-        self.dev = MS2000("dut", self.profile, self.t, HostServices(self.state_dir))
+        """A new model on the same state directory (or services): an emulator restart."""
+        self.dev = MS2000("dut", self.profile, self.t, self.services)
 
     def _collect(self) -> None:
         self.emissions.extend((e.due, e.data) for e in self.dev.take_output())

@@ -203,7 +203,9 @@ def test_trailing_value_rounds_like_led_x_ms_led_3(ms: Harness) -> None:
     assert ms.cmd("LED X?") == b"X=55 :A\r\n"
 
 
-def test_move_complete_hook_gets_every_landed_axis(ms: Harness) -> None:
+def test_move_complete_hook_gets_every_landed_axis(
+    make: type[Harness], monkeypatch: pytest.MonkeyPatch
+) -> None:
     seen: list[list[str]] = []
 
     class Probe(Module):
@@ -212,7 +214,8 @@ def test_move_complete_hook_gets_every_landed_axis(ms: Harness) -> None:
         def move_complete(self, axes: list[str], now: float) -> None:
             seen.append(list(axes))
 
-    ms.dev.modules["PROBE"] = Probe(ms.dev)
+    monkeypatch.setitem(MODULES, Probe.name, Probe)
+    ms = make(overrides={"modules": ["LL COMMANDS", "RING BUFFER", "INO_INT", "LED DIMMER", Probe.name]})
     ms.cmd("M X=1000 Y=50000 Z=10")
     ms.idle()
     assert len(seen) == 1 and sorted(seen[0]) == ["X", "Y", "Z"]

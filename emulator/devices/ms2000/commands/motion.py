@@ -11,6 +11,7 @@ from emulator.devices.ms2000.calls import (
     number,
 )
 from emulator.devices.ms2000.commands.base import CommandSet
+from emulator.devices.ms2000.status import right_char, status_byte
 from emulator.motion import round_half_away
 from protocols.ms2000 import ErrorCode, Kind
 
@@ -48,6 +49,7 @@ class MotionCommands(CommandSet):
                 axis.s.polarity * axis.pos(call.now) / axis.counts_per_mm
                 - number(item) / axis.s.unit_multiplier
             )
+        self.ctl.positions_changed()  # the origin moved: saved like a rest (MS-111)
         return self.ctl.ack()
 
     def zero(self, call: Call) -> Reply:
@@ -123,16 +125,16 @@ class MotionCommands(CommandSet):
             elif item.kind is Kind.MINUS:
                 values.append(ctl.left_char(axis, t))
             elif item.kind is Kind.PLUS:
-                values.append(axis.right_char(t))
+                values.append(right_char(axis, t))
             else:
-                values.append(str(axis.status_byte(t, ctl.knobs.status_bit5_up_is_one)))
+                values.append(str(status_byte(axis, t, ctl.knobs.status_bit5_up_is_one)))
         return self._list(call, values)
 
     def rdsbyte(self, call: Call) -> Reply:
         """RDSBYTE: `:A` and one raw status byte per axis (MS-82)."""
         ctl = self.ctl
         raw = bytes(
-            a.status_byte(call.now, ctl.knobs.status_bit5_up_is_one) for a, _ in self._axis_items(call)
+            status_byte(a, call.now, ctl.knobs.status_bit5_up_is_one) for a, _ in self._axis_items(call)
         )
         prefix = b":A " if ctl.knobs.rb_space_after_ack else b":A"
         return Reply((prefix + raw,))

@@ -152,7 +152,7 @@ class SettingsCommands(CommandSet):
 
         def store(axis: Axis, value: float) -> None:
             axis.auto.aa = int(value)
-            self.ctl.save_auto()
+            self.ctl.power.save_auto()
 
         return self._settings(
             call,
@@ -245,7 +245,7 @@ class SettingsCommands(CommandSet):
         ctl = self.ctl
 
         def factory(axis: Axis) -> float:
-            return getattr(ctl.factory_auto(axis.hw_letter), name)
+            return getattr(ctl.power.factory_auto(axis.hw_letter), name)
 
         def store(axis: Axis, machine_mm: float) -> None:
             if axis.letter == "Z" and name == "soft_lower" and machine_mm >= axis.auto.soft_upper:
@@ -264,7 +264,7 @@ class SettingsCommands(CommandSet):
         )
         reply = self._settings(call, params)
         if any(i.kind is not Kind.QUERY for i in call.items):
-            ctl.save_auto()
+            ctl.power.save_auto()
         return reply
 
     def joystick(self, call: Call) -> Reply:
@@ -358,7 +358,7 @@ class SettingsCommands(CommandSet):
 
         def store_x(value: float) -> None:
             ctl.card_auto.cca_x = int(value)
-            ctl.save_auto()
+            ctl.power.save_auto()
 
         check = within(-32768, 32767, integer=True)
         params = {

@@ -67,17 +67,14 @@ class SystemCommands(CommandSet):
         reply = self._settings(call, params, PSEUDO_ORDER)
         t = call.now
         if "ttl_in" in changed:
-            for module in ctl.modules.values():
-                module.in0_mode_changed(card.ttl_in, t)
+            ctl.modules.in0_mode_changed(card.ttl_in, t)
         if "ttl_out" in changed:
-            for module in ctl.modules.values():
-                module.out0_mode_changed(card.ttl_out, t)
+            ctl.modules.out0_mode_changed(card.ttl_out, t)
         if changed & {"ttl_out", "ttl_polarity"}:
             ctl.ttl.apply_mode(t)
         trailing = _number_after(call.items, "Y")
         if "ttl_out" in changed and trailing is not None:
-            for module in ctl.modules.values():
-                module.ttl_trailing_value(card.ttl_out, trailing, t)
+            ctl.modules.ttl_trailing_value(card.ttl_out, trailing, t)
             ctl.ttl.refresh(t)
         return reply
 
@@ -125,9 +122,12 @@ class SystemCommands(CommandSet):
 
         def store(letter: str, value: float) -> None:
             bca[letter] = int(value)
-            ctl.save_auto()
+            ctl.power.save_auto()
 
-        params = {k: Param(partial(bca.get, k, 0), partial(store, k), function) for k in PSEUDO_ORDER}
+        def get(letter: str) -> float:
+            return bca.get(letter, 0)
+
+        params = {k: Param(partial(get, k), partial(store, k), function) for k in PSEUDO_ORDER}
         return self._settings(call, params, PSEUDO_ORDER)
 
     def extra(self, call: Call) -> Reply:
@@ -247,8 +247,8 @@ class SystemCommands(CommandSet):
             ":A",
         )
 
-    def saveset(self, call: Call) -> Reply:
-        """SAVESET: Z save, X factory at next power-up, Y cancel (MS-110)."""
+    def saveset(self, call: Call) -> Reply | Pending:
+        """SAVESET: Z save, X factory at next power-up, Y cancel; `:A` once saved (MS-110, MS-111)."""
         ctl = self.ctl
         items = [i for i in call.items if i.kind is not Kind.NUMBER]
         if not items:
@@ -261,10 +261,10 @@ class SystemCommands(CommandSet):
         first_error(codes)
         for item in items:
             if item.letter == "Z":
-                ctl.save_settings()
+                ctl.power.save_settings()
             else:
-                ctl.schedule_factory_reset(item.letter == "X")
-        return ctl.ack()
+                ctl.power.schedule_factory_reset(item.letter == "X")
+        return ctl.power.settled_ack()
 
     def savepos(self, call: Call) -> Reply:
         """SAVEPOS: X inhibits the power-off position save; bare SP saves and goes silent (MS-113)."""
@@ -272,21 +272,21 @@ class SystemCommands(CommandSet):
         card = ctl.card
         if not [i for i in call.items if i.kind is not Kind.NUMBER]:
             ctl.halt_all(call.now)
-            ctl.save_positions(call.now)
-            ctl.silence()  # this reply still goes out; nothing after it is read, queued lines included
+            ctl.power.save_positions(call.now)
+            # this reply still goes out; nothing after it is read, queued lines included
+            ctl.interpreter.silence()
             return ctl.ack()
-        params = {
-            "X": Param(
-                lambda: card.inhibit_position_save,
-                lambda v: setattr(card, "inhibit_position_save", int(v)),
-                one_of(0, 1),
-            )
-        }
+
+        def inhibit(value: float) -> None:
+            card.inhibit_position_save = int(value)
+            ctl.positions_changed()  # saved at once: it decides what a kill leaves (MS-111)
+
+        params = {"X": Param(lambda: card.inhibit_position_save, inhibit, one_of(0, 1))}
         return self._settings(call, params, "X")
 
     def reset(self, call: Call) -> Reply:
         """RESET `~`: reply first, then the software reset (MS-112)."""
-        self.ctl.scheduler.at(call.now, self.ctl.software_reset)
+        self.ctl.at(call.now, self.ctl.power.software_reset)
         return self.ctl.ack()
 
     def azero(self, call: Call) -> Reply | Pending:

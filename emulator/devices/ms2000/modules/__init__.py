@@ -1,25 +1,27 @@
-"""Firmware modules as plug-ins: one file per module in this package.
+"""Firmware modules as plug-ins: one file per module in this package (rule 6 of the design).
 
-A module subclasses `Module`, decorates it with `@register`, and declares what it adds to the
-controller:
+A module subclasses `Module`, decorates it with `@register`, and declares everything it adds to the
+controller in its own file:
 
-- `name`: the module's name in a profile's `modules` list and on its `BU X` line;
+- `name`: the module's name in a profile's `modules` list and on its `BU X` line (`bu_line()`);
 - `handlers()`: command key (protocols.ms2000 table) -> handler; a command whose owning modules are
   all absent from the profile replies `:N-1` (MS-118); `query_shapes` adds reply shapes. Handlers
   are installed in the profile's module order after the base ones, so a module may also take over a
-  base command (delegating the rest to `ctl.commands`);
+  base command;
 - `profile_fields` / `knob_fields`: schema fields merged into the profile (top level / `knobs`);
+- `save()`/`restore()`: its part of `SS Z` (MS-111), under `saved.modules.<name>`;
 - `in0_modes`, `out0_modes`: TTL IN0/OUT0 mode numbers it implements (`TTL X=`, `TTL Y=`);
   `provides_in0_interrupt`: it is the IN0 interrupt service (INO_INT) that non-zero modes need;
-- `button_priority`, `button()`, `button_functions()`: front-panel buttons it claims (MS-85) and
+- `button_priority`, `button()`, `button_functions()`: front-panel presses it claims (MS-85) and
   `BE F` function numbers it implements (MS-86);
 - `observable` / `observe()`, `inputs` / `control_input()`: control-channel vocabulary;
-- `lcd_segment()`, `bu_line()`, `save()`/`restore()` (SS Z), `reset()`, `halt()`, and the event
-  hooks `in0_trigger()`, `in0_mode_changed()`, `out0_mode_changed()`, `out0_level()`, `out0_pwm()`,
-  `ttl_trailing_value()`, `move_complete()`, `report_mask()`.
+- `lcd_segment()`, `reset()`, `halt()`, and the event hooks `in0_trigger()`, `in0_mode_changed()`,
+  `out0_mode_changed()`, `out0_level()`, `out0_pwm()`, `ttl_trailing_value()`, `move_complete()`,
+  `report_mask()`.
 
-The controller passes itself; modules use its public methods (moves, scheduling, unsolicited
-output, error log) and never touch the line.
+A module sees the controller only as a `ModuleHost` (modules/host.py), and only the controller's
+`ModuleSet` (modules/moduleset.py) calls its hooks, in the order documented there. Adding a module
+is one file here, a profile that lists it, its documentation and its tests.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ from emulator.schema import Field
 from protocols.ms2000 import Fmt, Shape
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.modules.host import ModuleHost
 
 Handler = Callable[[Call], "Reply | Pending"]
 
@@ -56,8 +58,8 @@ class Module:
     observable: ClassVar[str | None] = None
     inputs: ClassVar[frozenset[str]] = frozenset()
 
-    def __init__(self, ctl: MS2000) -> None:
-        self.ctl = ctl
+    def __init__(self, host: ModuleHost) -> None:
+        self.host = host
 
     def handlers(self) -> dict[str, Handler]:
         return {}

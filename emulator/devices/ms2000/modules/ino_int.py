@@ -15,7 +15,7 @@ from emulator.motion import round_half_away
 from protocols.ms2000 import Fmt
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.modules.host import ModuleHost
     from emulator.devices.ms2000.scheduler import Timer
 
 REPEAT_RELATIVE, Z_STACK, REPORT, TOGGLE_OUT = 2, 4, 5, 10
@@ -29,8 +29,8 @@ class InoInt(Module):
     in0_modes = frozenset({REPEAT_RELATIVE, Z_STACK, REPORT, TOGGLE_OUT})
     observable = "z_stack"
 
-    def __init__(self, ctl: MS2000) -> None:
-        super().__init__(ctl)
+    def __init__(self, host: ModuleHost) -> None:
+        super().__init__(host)
         self.zs = dict(FACTORY_ZS)
         self.start_units = 0.0
         self.index = 0
@@ -76,7 +76,7 @@ class InoInt(Module):
             "Z": Param(lambda: zs["mode"], setter("mode", int), one_of(0, 1)),
             "F": Param(lambda: zs["timeout_ms"], setter("timeout_ms", int), within(0, 65535, integer=True)),
         }
-        return run_settings(call, params, "XYZF", self.ctl.render(call.key), self.ctl.ack())
+        return run_settings(call, params, "XYZF", self.host.render(call.key), self.host.ack())
 
     def in0_mode_changed(self, mode: int, now: float) -> None:
         if mode != REPORT:
@@ -92,38 +92,38 @@ class InoInt(Module):
         elif mode == REPORT:
             if self._report is None:
                 self._report_start = now
-                self._report = self.ctl.scheduler.at(now + self._period(), self._send_report)
+                self._report = self.host.at(now + self._period(), self._send_report)
             else:
                 self._stop_reports()
         elif mode == TOGGLE_OUT:
-            self.ctl.ttl.toggle(now)
+            self.host.toggle_out0(now)
 
     # ---- mode 2 -------------------------------------------------------------------------------
 
     def _repeat_relative(self, now: float) -> None:
-        ctl = self.ctl
-        moves = [(ctl.axis_named(letter), units) for letter, units in ctl.last_relative]
-        focus = ctl.focus_axis()
+        host = self.host
+        moves = [(host.axis_named(letter), units) for letter, units in host.last_relative]
+        focus = host.focus_axis()
         if not moves and focus is not None and self.zs["step"]:
             moves = [(focus, self.zs["step"])]
         goals = [
-            (axis, ctl.relative_goal(axis, (units or 0.0) / axis.s.unit_multiplier, now))
+            (axis, host.relative_goal(axis, (units or 0.0) / axis.s.unit_multiplier, now))
             for axis, units in moves
             if axis is not None
         ]
-        ctl.start_moves(goals, now)
+        host.start_moves(goals, now)
 
     # ---- mode 4 -------------------------------------------------------------------------------
 
     def _restart_stack(self, now: float) -> None:
-        focus = self.ctl.focus_axis()
+        focus = self.host.focus_axis()
         self.start_units = focus.units(now) if focus is not None else 0.0
         self.index = 0
         self.direction = 1
         self.last_edge = None
 
     def _stack_step(self, now: float) -> None:
-        focus = self.ctl.focus_axis()
+        focus = self.host.focus_axis()
         if focus is None:
             return
         timed_out = self.last_edge is not None and (now - self.last_edge) * 1000 > self.zs["timeout_ms"]
@@ -141,18 +141,18 @@ class InoInt(Module):
                 self.direction = 1
             self.index += self.direction
         goal = self.start_units + self.index * self.zs["step"]
-        self.ctl.start_moves([(focus, focus.counts_of_units(goal))], now)
+        self.host.start_moves([(focus, focus.counts_of_units(goal))], now)
 
     # ---- mode 5 -------------------------------------------------------------------------------
 
     def _period(self) -> float:
-        return self.ctl.card.rt_report_ms / 1000
+        return self.host.card.rt_report_ms / 1000
 
     def _send_report(self, now: float) -> None:
         ms = round_half_away((now - self._report_start) * 1000)
-        positions = " ".join(self.ctl.where(a.units(now)) for a in self.ctl.report_axes())
-        self.ctl.unsolicited(f"{ms} {positions}", now)
-        self._report = self.ctl.scheduler.at(now + self._period(), self._send_report)
+        positions = " ".join(self.host.where(a.units(now)) for a in self.host.report_axes())
+        self.host.unsolicited(f"{ms} {positions}", now)
+        self._report = self.host.at(now + self._period(), self._send_report)
 
     def _stop_reports(self) -> None:
         if self._report is not None:

@@ -16,7 +16,7 @@ from emulator.motion import round_half_away
 from emulator.schema import Choice, Field
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.modules.host import ModuleHost
 
 PWM_MODE = 9
 FACTORY = {"X": 0, "Y": 0, "Z": 0, "F": 0}
@@ -37,8 +37,8 @@ class LedDimmer(Module):
     out0_modes = frozenset({PWM_MODE})
     observable = "led"
 
-    def __init__(self, ctl: MS2000) -> None:
-        super().__init__(ctl)
+    def __init__(self, host: ModuleHost) -> None:
+        super().__init__(host)
         self.values = dict(FACTORY)
 
     def handlers(self) -> dict[str, Handler]:
@@ -52,17 +52,17 @@ class LedDimmer(Module):
         def setter(letter: str) -> Any:
             def store(value: float) -> None:
                 values[letter] = int(value)
-                self.ctl.ttl.refresh(now)
+                self.host.refresh_out0(now)
 
             return store
 
         params = {"X": Param(lambda: values["X"], setter("X"), within(0, 100, integer=True))}
         for letter in "YZF":
             params[letter] = Param(partial(values.__getitem__, letter), setter(letter), one_of(0, 1))
-        return run_settings(call, params, "XYZF", self.ctl.render(call.key), self.ctl.ack())
+        return run_settings(call, params, "XYZF", self.host.render(call.key), self.host.ack())
 
     def ttl_trailing_value(self, out_mode: int, value: float, now: float) -> None:
-        if out_mode == PWM_MODE and self.ctl.knobs.ttl_pwm_trailing_value == "apply" and 0 <= value <= 100:
+        if out_mode == PWM_MODE and self.host.knobs.ttl_pwm_trailing_value == "apply" and 0 <= value <= 100:
             self.values["X"] = round_half_away(value)
 
     def out0_level(self) -> int | None:

@@ -10,6 +10,7 @@ loop until the next trigger (mode 3). Buffer contents are volatile; `RM Y` and `
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from emulator.devices.ms2000.buttons import EXTRA, LONG, NORMAL
@@ -28,7 +29,7 @@ from emulator.schema import Bool, Choice, Field
 from protocols.ms2000 import ErrorCode, Kind
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.modules.host import ModuleHost
     from emulator.devices.ms2000.scheduler import Timer
 
 FACTORY_MASK = 3  # X and Y (MS-RB-4)
@@ -53,9 +54,9 @@ class RingBuffer(Module):
     button_priority = 70
     observable = "ring_buffer"
 
-    def __init__(self, ctl: MS2000) -> None:
-        super().__init__(ctl)
-        self.size: int = ctl.cfg.ring_buffer_size
+    def __init__(self, host: ModuleHost) -> None:
+        super().__init__(host)
+        self.size: int = host.cfg.ring_buffer_size
         self.slots: list[dict[str, float]] = []
         self.pointer = 0
         self.axis_mask = self._factory_mask()
@@ -63,16 +64,16 @@ class RingBuffer(Module):
         self._play: Timer | None = None
 
     def _factory_mask(self) -> int:
-        return min(FACTORY_MASK, (1 << len(self.ctl.axes)) - 1)
+        return min(FACTORY_MASK, (1 << len(self.host.axes)) - 1)
 
     def handlers(self) -> dict[str, Handler]:
         return {"LD": self.load, "RM": self.rbmode}
 
-    def button_functions(self) -> dict[int, Any]:
+    def button_functions(self) -> dict[int, Callable[[float], None]]:
         return {FN_NEXT: self.trigger, FN_STORE: self.store_here, FN_CLEAR: self.clear}
 
     def bu_line(self) -> str:
-        return f"{self.name} {self.size}" if self.ctl.knobs.bu_x_ring_buffer_size else self.name
+        return f"{self.name} {self.size}" if self.host.knobs.bu_x_ring_buffer_size else self.name
 
     def lcd_segment(self, now: float) -> str | None:
         return f"RB {self.pointer}/{len(self.slots)}"
@@ -121,10 +122,10 @@ class RingBuffer(Module):
 
     def load(self, call: Call) -> Reply:
         """LOAD: store a position in the next slot; `L?` reads the slot at the pointer (MS-RB-2/3)."""
-        ctl = self.ctl
+        host = self.host
         slot: dict[str, float] = {}
         queries: list[str] = []
-        for axis, item in axis_items(call, ctl.axes):
+        for axis, item in axis_items(call, host.axes):
             if item.kind is Kind.QUERY:
                 queries.append(axis.letter)
             elif item.kind is Kind.PLUS:
@@ -136,21 +137,21 @@ class RingBuffer(Module):
                 raise CommandError(ErrorCode.OUT_OF_RANGE)
             self.slots.append(slot)
         if not queries:
-            return ctl.ack()
+            return host.ack()
         current = self.slots[self.pointer] if self.slots else {}
         pairs = []
-        for axis in ctl.axes:
+        for axis in host.axes:
             if axis.letter in queries:
                 units = current.get(axis.hw_letter, axis.units(call.now) if current else 0.0)
-                pairs.append((axis.letter, ctl.where(units)))
-        return ctl.render(call.key).items(pairs)
+                pairs.append((axis.letter, host.where(units)))
+        return host.render(call.key).items(pairs)
 
     def rbmode(self, call: Call) -> Reply:
         """RBMODE: X clear/count, Y axes, Z pointer, F mode; bare RM is a trigger (MS-RB-4/5)."""
-        ctl = self.ctl
+        host = self.host
         if not [i for i in call.items if i.kind is not Kind.NUMBER]:
-            ctl.in0_function(call.now, ctl.card.ttl_in or 1)
-            return ctl.ack()
+            host.in0_function(host.card.ttl_in or 1, call.now)
+            return host.ack()
 
         def pointer(value: float) -> float:
             if value != int(value) or not 0 <= value <= max(len(self.slots) - 1, 0):
@@ -158,7 +159,7 @@ class RingBuffer(Module):
             return value
 
         def mask(value: float) -> float:
-            if value != int(value) or not 1 <= value <= (1 << len(ctl.axes)) - 1:
+            if value != int(value) or not 1 <= value <= (1 << len(host.axes)) - 1:
                 raise CommandError(ErrorCode.OUT_OF_RANGE)
             return value
 
@@ -173,7 +174,7 @@ class RingBuffer(Module):
             "Z": Param(lambda: self.pointer, lambda v: setattr(self, "pointer", int(v)), pointer),
             "F": Param(lambda: self.mode | (AUTOPLAY_FLAG if self.playing else 0), self._set_mode, mode),
         }
-        return run_settings(call, params, "XYZF", ctl.render(call.key), ctl.ack())
+        return run_settings(call, params, "XYZF", host.render(call.key), host.ack())
 
     def _set_mode(self, value: float) -> None:
         self.mode = int(value)
@@ -202,7 +203,7 @@ class RingBuffer(Module):
 
     def store_here(self, now: float) -> None:
         if len(self.slots) < self.size:
-            self.slots.append({a.hw_letter: a.units(now) for a in self.ctl.axes})
+            self.slots.append({a.hw_letter: a.units(now) for a in self.host.axes})
 
     def trigger(self, now: float) -> None:
         if not self.slots:
@@ -219,10 +220,10 @@ class RingBuffer(Module):
         self.pointer = (self.pointer + 1) % len(self.slots)
         goals = [
             (a, a.counts_of_units(slot[a.hw_letter]))
-            for a in self.ctl.axes
+            for a in self.host.axes
             if self.axis_mask & (1 << a.index) and a.hw_letter in slot
         ]
-        self.ctl.start_moves(goals, now)
+        self.host.start_moves(goals, now)
 
     def _autoplay(self, now: float) -> None:
         self._play = None
@@ -230,5 +231,5 @@ class RingBuffer(Module):
         if self.pointer == 0 and self.mode == 2:
             return
         # `RT Z=0` is allowed: the next step still waits one servo period rather than loop forever
-        interval = max(self.ctl.card.rt_delay_ms / 1000, self.ctl.servo_s)
-        self._play = self.ctl.scheduler.at(now + interval, self._autoplay)
+        interval = max(self.host.card.rt_delay_ms / 1000, self.host.servo_s)
+        self._play = self.host.at(now + interval, self._autoplay)

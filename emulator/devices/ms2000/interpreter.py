@@ -1,0 +1,186 @@
+"""The controller's command line: host bytes -> lines -> handlers -> framed replies.
+
+It owns line assembly (`max_line`, MS-9), the 0xFF control sequences and the switch to low-level
+mode (MS-119), the lines waiting behind a command that replies late (MS-13, MS-33), HALT's way past
+them (MS-76) and the silence after a bare `SP` (MS-113).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from typing import TYPE_CHECKING
+
+from emulator.devices.ms2000.calls import Call, CommandError, Pending, Reply
+from emulator.devices.ms2000.commands.base import Handler
+from protocols import ms2000 as proto
+from protocols.ms2000 import ErrorCode
+
+if TYPE_CHECKING:
+    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.scheduler import Timer
+
+
+class Interpreter:
+    def __init__(self, ctl: MS2000, handlers: dict[str, Handler]) -> None:
+        self.ctl = ctl
+        self.handlers = handlers
+        self.low_level = False
+        self.silenced = False
+        self._line = bytearray()
+        self._overflow = False
+        self._ff = False
+        #: bytes read while the host's settings mismatched (MS-4): dropped once they match again
+        self._junk = False
+        self._queue: deque[bytes | None] = deque()
+        #: the command waiting to reply, whether it ends lines with CR only, and its timer
+        self._pending: tuple[Pending, bool, Timer | None] | None = None
+
+    @property
+    def mode(self) -> str:
+        return "silent" if self.silenced else "low" if self.low_level else "high"
+
+    def feed(self, data: bytes, t: float, garbled: bool) -> None:
+        if garbled:
+            self._junk = True
+        elif self._junk:
+            # MS-4 [choice]: what a mismatched host left half-assembled is dropped once its settings
+            # match again, so its first line at the right settings is read cleanly (TV-120)
+            self._junk = False
+            self._line.clear()
+            self._overflow = False
+            self.ctl.low.decoder.reset()
+        for byte in data:
+            if self.silenced:
+                break
+            self._byte(byte, t)
+
+    def _byte(self, byte: int, t: float) -> None:
+        if self._ff:
+            self._ff = False
+            self._control_sequence(byte, t)
+        elif byte == proto.CONTROL:
+            self._ff = True
+        elif self.low_level:
+            self.ctl.low.feed(byte, t)
+        elif byte == 0x0D:
+            line = None if self._overflow else bytes(self._line)
+            self._line.clear()
+            self._overflow = False
+            self._on_line(line, t)
+            self.ctl.scheduler.run_due(t)
+        elif len(self._line) >= self.ctl.knobs.max_line:
+            self._overflow = True
+        else:
+            self._line.append(byte)
+
+    def _control_sequence(self, byte: int, t: float) -> None:
+        ctl = self.ctl
+        if byte == 0x42:  # 'B'
+            if "LL COMMANDS" in ctl.cfg.modules:
+                self.low_level = True
+                self._line.clear()
+                self._overflow = False
+                ctl.low.reset()
+        elif byte == 0x41:  # 'A'
+            self.low_level = False
+            ctl.low.decoder.reset()
+        elif byte == 0x52:  # 'R'
+            ctl.power.software_reset(t)
+        elif byte == 0x48:  # 'H'
+            ctl.card.vb_decimals = 1
+        elif byte == 0x54:  # 'T'
+            ctl.card.vb_decimals = 0
+
+    def _on_line(self, line: bytes | None, t: float) -> None:
+        if self._pending is not None:
+            if line is not None and self._pending[0].haltable and self._is_halt(line):
+                self.cancel_pending(t, reply=True)
+                self._execute(line, t)
+                self.drain(t)
+            else:
+                self._queue.append(line)
+            return
+        self._execute(line, t)
+
+    @staticmethod
+    def _is_halt(line: bytes) -> bool:
+        spec = proto.split_command(line.decode("latin-1")).spec
+        return spec is not None and spec.key == "\\"
+
+    def _execute(self, line: bytes | None, t: float) -> None:
+        cr_only = bool(self.ctl.card.vb_flags & 8)
+        result = self._dispatch(line, t)
+        if isinstance(result, Pending):
+            due = result.due
+            timer = None if due is None else self.ctl.scheduler.at(due, self._finish_pending)
+            self._pending = (result, cr_only, timer)
+        else:
+            self._send(result, t, cr_only)
+
+    def _dispatch(self, line: bytes | None, t: float) -> Reply | Pending:
+        ctl = self.ctl
+        if line is None:
+            return ctl.error(ErrorCode.UNDEFINED)
+        text = line.decode("latin-1")
+        if proto.is_blank(text):
+            ignore = ctl.knobs.empty_line_reply == "ignore"
+            return Reply(()) if ignore else ctl.error(ErrorCode.UNKNOWN_COMMAND)
+        parts = proto.split_command(text)
+        handler = self.handlers.get(parts.spec.key) if parts.spec is not None else None
+        if parts.spec is None or handler is None:
+            return ctl.error(ErrorCode.UNKNOWN_COMMAND)
+        call = Call(parts.spec, tuple(proto.parse_items(parts.args)), parts.args, t)
+        try:
+            return handler(call)
+        except CommandError as exc:
+            return ctl.error(exc.code)
+
+    def _finish_pending(self, t: float) -> None:
+        if self._pending is None:
+            return
+        pending, cr_only, _ = self._pending
+        self._pending = None
+        self._send(pending.finish(t), t, cr_only)
+        self.drain(t)
+
+    def release(self, t: float) -> None:
+        """What a pending command without a due time waits for has happened (the store settled)."""
+        if self._pending is not None and self._pending[0].due is None:
+            self._finish_pending(t)
+
+    def cancel_pending(self, t: float, reply: bool) -> None:
+        if self._pending is None:
+            return
+        pending, cr_only, timer = self._pending
+        self._pending = None
+        if timer is not None:
+            timer.cancel()
+        pending.cancel(t)
+        if reply:
+            self._send(self.ctl.error(ErrorCode.HALTED), t, cr_only)
+
+    def drain(self, t: float) -> None:
+        while self._queue and self._pending is None and not self.silenced:
+            self._execute(self._queue.popleft(), t)
+
+    def _send(self, reply: Reply, t: float, cr_only: bool) -> None:
+        if reply.lines:
+            self.ctl.send_raw(proto.frame(reply.lines, cr_only), t)
+
+    def silence(self) -> None:
+        """`SP` alone: ignore all input until a power cycle (MS-113)."""
+        self.silenced = True
+        self._queue.clear()
+        self._line.clear()
+
+    def restart(self) -> None:
+        """Reset and power-up: back to ASCII mode with an empty line (MS-112)."""
+        self.low_level = False
+        self._line.clear()
+        self._overflow = False
+
+    def power_off(self) -> None:
+        """Waiting lines, a half-received control sequence and the silence are gone (MS-113)."""
+        self._queue.clear()
+        self.silenced = False
+        self._ff = False

@@ -1,0 +1,127 @@
+"""The host interfaces: all a firmware module (`ModuleHost`, rule 6 of the design) and an axis
+(`AxisHost`) may use of the controller.
+
+A module is constructed with an object satisfying `ModuleHost` and nothing else, an axis with an
+`AxisHost`; mypy holds them to these members. `controller.MS2000` implements both. A module that
+needs more adds it here and to the controller, on purpose and in review, rather than reaching into
+controller state.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, Protocol
+
+if TYPE_CHECKING:
+    from emulator.devices.ms2000.axis import Activity, Axis
+    from emulator.devices.ms2000.calls import Rendered, Reply
+    from emulator.devices.ms2000.scheduler import Timer
+    from emulator.devices.ms2000.settings import CardSettings
+    from protocols.ms2000 import Shape
+
+
+class ModuleHost(Protocol):
+    # ---- configuration and settings (read; a module keeps its own state itself) ---------------
+
+    @property
+    def cfg(self) -> Any:
+        """The validated profile (a module's own `profile_fields` included)."""
+
+    @property
+    def knobs(self) -> Any:
+        """The profile's behaviour knobs (a module's own `knob_fields` included)."""
+
+    @property
+    def card(self) -> CardSettings:
+        """Card-wide settings: `TTL` modes, `RT` times and the like."""
+
+    @property
+    def axes(self) -> Sequence[Axis]:
+        """Motor axes in hardware order (bit `axis.index` of an axis mask)."""
+
+    @property
+    def servo_s(self) -> float:
+        """The servo period: the shortest interval anything is timed to."""
+
+    @property
+    def last_relative(self) -> list[tuple[str, float | None]]:
+        """The last `R` command's (axis letter, units) items (IN0 mode 2 repeats them, MS-90)."""
+
+    # ---- time ---------------------------------------------------------------------------------
+
+    def at(self, due: float, action: Callable[[float], None]) -> Timer:
+        """Run `action(due)` at device time `due` (cancel through the returned timer)."""
+
+    # ---- replies and output -------------------------------------------------------------------
+
+    def ack(self) -> Reply: ...
+
+    def render(self, key: str, shape: Shape | None = None) -> Rendered:
+        """How to print a reply of command `key` (its query shape after the profile's overrides)."""
+
+    def where(self, units: float) -> str:
+        """A position as `W` prints it (current `VB Z` decimals)."""
+
+    def unsolicited(self, text: str, t: float) -> None:
+        """Send a line nobody asked for, with the current terminator (MS-18)."""
+
+    def log_error(self, code: int) -> None: ...
+
+    def push_event(self, event: dict[str, Any]) -> None:
+        """A control-channel event (`{"ev": name, ...}`)."""
+
+    # ---- motion -------------------------------------------------------------------------------
+
+    def axis_named(self, letter: str) -> Axis | None: ...
+
+    def focus_axis(self) -> Axis | None: ...
+
+    def relative_goal(self, axis: Axis, delta_mm: float, t: float) -> float:
+        """The machine count an `R` of `delta_mm` would go to (MS-45, MS-51)."""
+
+    def start_moves(self, goals: list[tuple[Axis, float]], t: float, activity: Activity = ...) -> None:
+        """A commanded move of several axes to machine counts, completing together (MS-51)."""
+
+    # ---- TTL ----------------------------------------------------------------------------------
+
+    def in0_function(self, mode: int, t: float) -> None:
+        """Do what an IN0 rising edge does in `mode` (MS-90)."""
+
+    def refresh_out0(self, t: float) -> None:
+        """Re-read OUT0's level after a module changed what it drives (MS-91)."""
+
+    def toggle_out0(self, t: float) -> None: ...
+
+    def report_axes(self) -> list[Axis]:
+        """The axes IN0 mode 5 reports: a module's selection (`report_mask`) or all."""
+
+
+class AxisHost(Protocol):
+    """All an axis may use of its controller (`controller.MS2000` implements it)."""
+
+    @property
+    def knobs(self) -> Any: ...
+
+    @property
+    def servo_s(self) -> float: ...
+
+    def at(self, due: float, action: Callable[[float], None]) -> Timer: ...
+
+    def log_error(self, code: int) -> None: ...
+
+    def record_sample(self, axis: Axis, t: float) -> None:
+        """A DUMP trajectory sample at a leg boundary (MS-108)."""
+
+    def positions_changed(self) -> None:
+        """The axis came to rest or its coordinates changed: positions are due a save (MS-111)."""
+
+    def axis_finished(self, axis: Axis, t: float) -> None:
+        """A commanded move or home of this axis has ended (its move group may complete)."""
+
+    def resume_manual(self, axis: Axis, t: float) -> None:
+        """The axis is free again: the joystick takes it over if deflected (MS-83)."""
+
+    def disable_motor(self, axis: Axis, t: float) -> None: ...
+
+    def ensync_toggle(self) -> None:
+        """The axis crossed its ENSYNC position (MS-95)."""

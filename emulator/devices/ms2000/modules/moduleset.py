@@ -1,0 +1,174 @@
+"""The modules of one controller, and the only caller of their hooks."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any
+
+from emulator.device import ControlError
+from emulator.devices.ms2000.modules import MODULES, Handler, Module
+
+if TYPE_CHECKING:
+    from emulator.devices.ms2000.modules.host import ModuleHost
+    from protocols.ms2000 import Shape
+
+
+class ModuleSet:
+    """The modules a profile lists, built on one host; the controller calls hooks only through here.
+
+    Order among modules: every hook runs on the modules in the profile's `modules` order (the order
+    `BU X` prints, MS-102), except that a front-panel press is offered by `button_priority` first
+    (MS-85; ties in profile order) and a TTL mode is served by the first module declaring it.
+
+    Order in the controller's life:
+    1. construction: modules built in profile order; `handlers()` installed after the base commands
+       (a module may take over a base command), `query_shapes` merged;
+    2. power-up and software reset (MS-112): `restore()` after the base settings are restored, then,
+       once axes, buttons and low-level mode are back to idle, `reset()`; TTL OUT0 is re-applied
+       after it, so a module's `out0_level()` sees its restored state;
+    3. while running, each when its event happens: for a `TTL` command, `in0_mode_changed()` (X
+       set), `out0_mode_changed()` (Y set), OUT0 re-applied, then `ttl_trailing_value()` (`TTL
+       Y=n v`, MS-24) and OUT0 re-read; `in0_trigger()` on an IN0 edge or a bare `RM`; `button()` on
+       a release, before any base function; `move_complete()` after the base effects of a completed
+       move (event, `VB X` lines, OUT0 pulse); `halt()` after every axis stopped; `save()` at `SS Z`;
+    4. whenever asked: `bu_line()`, `lcd_segment()`, `observe()`, `control_input()`, `report_mask()`,
+       `out0_level()`, `out0_pwm()`, `button_functions()`.
+    """
+
+    def __init__(self, host: ModuleHost, names: Sequence[str]) -> None:
+        #: the profile's list, feature flags (LL COMMANDS) included
+        self.names = tuple(names)
+        self._modules = [MODULES[n](host) for n in self.names if n in MODULES]
+        self._by_priority = sorted(self._modules, key=lambda m: m.button_priority)
+
+    def _named(self, name: str) -> Module | None:
+        return next((m for m in self._modules if m.name == name), None)
+
+    # ---- construction -------------------------------------------------------------------------
+
+    def handlers(self) -> dict[str, Handler]:
+        table: dict[str, Handler] = {}
+        for module in self._modules:
+            table.update(module.handlers())
+        return table
+
+    def query_shapes(self) -> dict[str, Shape]:
+        return {key: shape for m in self._modules for key, (shape, _) in m.query_shapes.items()}
+
+    # ---- reports and the control channel --------------------------------------------------------
+
+    def bu_lines(self) -> list[str]:
+        """One `BU X` line per listed module; a feature flag prints its name (MS-102)."""
+        lines = []
+        for name in self.names:
+            module = self._named(name)
+            lines.append(module.bu_line() if module is not None else name)
+        return lines
+
+    def lcd_segments(self, t: float) -> list[str]:
+        return [s for m in self._modules if (s := m.lcd_segment(t))]
+
+    def observables(self) -> dict[str, Callable[[float], Any]]:
+        return {m.observable: m.observe for m in self._modules if m.observable}
+
+    def inputs(self) -> set[str]:
+        return {name for m in self._modules for name in m.inputs}
+
+    def control_input(self, name: str, params: dict[str, Any], t: float) -> Any:
+        module = next((m for m in self._modules if name in m.inputs), None)
+        if module is None:
+            raise ControlError(f"no module takes input {name!r}")
+        return module.control_input(name, params, t)
+
+    # ---- SS Z and the power cycle -------------------------------------------------------------
+
+    def save(self) -> dict[str, dict[str, Any]]:
+        return {m.name: m.save() for m in self._modules}
+
+    def restore(self, saved: dict[str, Any], reject: Callable[[str, Any], None]) -> None:
+        """Each module's `saved.modules.<name>` section, or its factory values (None). A stored
+        value the module did not take (it kept its own) is passed to `reject` (MS-111)."""
+        for module in self._modules:
+            data = saved.get(module.name)
+            if data is not None and not isinstance(data, dict):
+                reject(f"saved.modules.{module.name}", data)
+                data = None
+            module.restore(data)
+            kept = module.save()
+            for key, value in (data or {}).items():
+                if key in kept and kept[key] is not value and kept[key] != value:
+                    reject(f"saved.modules.{module.name}.{key}", value)
+
+    def reset(self, t: float) -> None:
+        for module in self._modules:
+            module.reset(t)
+
+    # ---- motion -------------------------------------------------------------------------------
+
+    def halt(self, t: float) -> None:
+        for module in self._modules:
+            module.halt(t)
+
+    def move_complete(self, landed: list[str], t: float) -> None:
+        for module in self._modules:
+            module.move_complete(landed, t)
+
+    def report_mask(self) -> int | None:
+        """The first module's selection of the axes IN0 mode 5 reports (RING BUFFER's `RM Y`)."""
+        return next((mask for m in self._modules if (mask := m.report_mask()) is not None), None)
+
+    # ---- TTL (§6.7) ---------------------------------------------------------------------------
+
+    def _in0_module(self, mode: int) -> Module | None:
+        return next((m for m in self._modules if mode in m.in0_modes), None)
+
+    def _out0_module(self, mode: int) -> Module | None:
+        return next((m for m in self._modules if mode in m.out0_modes), None)
+
+    def in0_available(self, mode: int) -> bool:
+        """Mode 0 always; others need a module serving the mode and the IN0 interrupt (MS-90)."""
+        if mode == 0:
+            return True
+        interrupt = any(m.provides_in0_interrupt for m in self._modules)
+        return interrupt and self._in0_module(mode) is not None
+
+    def in0_trigger(self, mode: int, t: float) -> None:
+        module = self._in0_module(mode) if mode else None
+        if module is not None:
+            module.in0_trigger(mode, t)
+
+    def in0_mode_changed(self, mode: int, t: float) -> None:
+        for module in self._modules:
+            module.in0_mode_changed(mode, t)
+
+    def out0_modes(self) -> set[int]:
+        return {mode for m in self._modules for mode in m.out0_modes}
+
+    def out0_mode_changed(self, mode: int, t: float) -> None:
+        for module in self._modules:
+            module.out0_mode_changed(mode, t)
+
+    def out0_level(self, mode: int) -> int | None:
+        """OUT0's level in `mode` when a module drives it, else None (MS-91)."""
+        module = self._out0_module(mode)
+        return None if module is None else module.out0_level()
+
+    def out0_pwm(self, mode: int) -> float | None:
+        module = self._out0_module(mode)
+        return None if module is None else module.out0_pwm()
+
+    def ttl_trailing_value(self, mode: int, value: float, t: float) -> None:
+        for module in self._modules:
+            module.ttl_trailing_value(mode, value, t)
+
+    # ---- buttons (MS-85, MS-86) ---------------------------------------------------------------
+
+    def button(self, name: str, press: str, t: float) -> bool:
+        """Offer a released press to the modules by priority; True when one claimed it."""
+        return any(m.button(name, press, t) for m in self._by_priority)
+
+    def button_functions(self) -> dict[int, Callable[[float], None]]:
+        table: dict[int, Callable[[float], None]] = {}
+        for module in self._modules:
+            table.update(module.button_functions())
+        return table
