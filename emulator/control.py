@@ -21,6 +21,7 @@ The device vocabulary (`in`, `get`, `ev` names) belongs to each device model.
 from __future__ import annotations
 
 import asyncio
+import builtins
 import contextlib
 import json
 import logging
@@ -319,7 +320,7 @@ class ControlClient:
         self._sock.connect(str(path))
         self._buffer = b""
         self._next_id = 0
-        self._events: list[dict[str, Any]] = []
+        self._events: builtins.list[dict[str, Any]] = []
 
     def close(self) -> None:
         self._sock.close()
@@ -380,7 +381,7 @@ class ControlClient:
         """Set a device input; positional-only so an input may itself take a `name` parameter."""
         return self.request({"device": device, "in": input_name, **params})
 
-    def names(self, device: str) -> dict[str, list[str]]:
+    def names(self, device: str) -> dict[str, builtins.list[str]]:  # `list` is a method here
         """The device's input and observable names."""
         return self.request({"device": device, "op": "names"})
 

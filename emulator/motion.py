@@ -11,11 +11,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-RAMP_UP = "ramp_up"
-CRUISE = "cruise"
-RAMP_DOWN = "ramp_down"
-DONE = "done"
-
 
 @dataclass(frozen=True)
 class Trapezoid:
@@ -89,17 +84,6 @@ class Trapezoid:
         if t <= total - ramp:
             return self.peak_speed
         return self.accel * (total - t)
-
-    def phase(self, t: float) -> str:
-        total = self.duration
-        if t >= total:
-            return DONE
-        ramp = self.ramp_time
-        if ramp > 0 and t < ramp:
-            return RAMP_UP
-        if ramp > 0 and t > total - ramp:
-            return RAMP_DOWN
-        return CRUISE
 
 
 def round_half_away(value: float) -> int:

@@ -194,7 +194,7 @@ def _load_chain(
         raise ProfileError(str(err))
     located = _read_profile(ref, path, via)
     parent_ref = located.data.get("extends")
-    chain = (key,)
+    chain: tuple[str, ...] = (key,)
     if parent_ref is not None:
         if not isinstance(parent_ref, str) or not parent_ref:
             raise ProfileError(str(located.error(("extends",), "must be a profile name or path")))
@@ -231,6 +231,7 @@ def load_profile(
     name = FsPath(chain[-1]).stem
     _check_top(located)
     fam = registry.family(data["device"])
+    assert fam is not None  # _check_top refused unknown families
     body = {k: v for k, v in data.items() if k not in TOP_LEVEL_KEYS}
     try:
         config = fam.schema.check(body, ())

@@ -178,7 +178,7 @@ class _Loader(Composer, *_PARSER_BASES, SafeConstructor, Resolver):  # type: ign
         self.depth = 0
         self.nodes = 0
 
-    def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node:
+    def compose_node(self, parent: yaml.Node | None, index: Any) -> yaml.Node | None:
         line = self.peek_event().start_mark.line + 1
         self.nodes += 1
         if self.nodes > MAX_NODES:
@@ -221,9 +221,9 @@ def load_located(text: str, source: str, quote: bool = True) -> Located:
         raise SourceError(f"{source}:{line}: not valid YAML{detail}") from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
-        line = f"{mark.line + 1}" if mark is not None else "1"
+        where = mark.line + 1 if mark is not None else 1
         problem = " ".join((getattr(exc, "problem", None) or str(exc)).split())
-        raise SourceError(f"{source}:{line}: not valid YAML" + (f": {problem}" if quote else "")) from None
+        raise SourceError(f"{source}:{where}: not valid YAML" + (f": {problem}" if quote else "")) from None
 
 
 def _load(text: str, source: str, quote: bool) -> Located:
@@ -239,7 +239,10 @@ def _load(text: str, source: str, quote: bool) -> Located:
         loader.dispose()
 
 
-_PLAIN_TAGS = {yaml.MappingNode: "tag:yaml.org,2002:map", yaml.SequenceNode: "tag:yaml.org,2002:seq"}
+_PLAIN_TAGS: dict[type[yaml.Node], str] = {
+    yaml.MappingNode: "tag:yaml.org,2002:map",
+    yaml.SequenceNode: "tag:yaml.org,2002:seq",
+}
 
 
 def _build(loader: _Loader, node: yaml.Node, path: Path, places: dict[Path, Where]) -> Any:
@@ -271,8 +274,9 @@ def _build(loader: _Loader, node: yaml.Node, path: Path, places: dict[Path, Wher
     if isinstance(node, yaml.SequenceNode):
         items = []
         for index, item in enumerate(node.value):
-            places[(*path, index)] = Where(source, item.start_mark.line + 1)
-            items.append(_build(loader, item, (*path, index), places))
+            child = (*path, index)
+            places[child] = Where(source, item.start_mark.line + 1)
+            items.append(_build(loader, item, child, places))
         return items
     return _scalar(loader, node)
 
