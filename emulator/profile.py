@@ -22,13 +22,14 @@ Limits (besides those of `emulator.yamlsource` on each file):
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path as FsPath
-from typing import Any
+from typing import Any, Generic, TypeVar
 
 from emulator import registry
-from emulator.schema import Choice, Field, Int, SchemaError, Struct, Text, describe_rows
+from emulator.schema import Choice, Int, KnobRow, Schema, SchemaError, Section, Text, describe_rows, setting
 from emulator.yamlsource import FileProblem, Located, SourceError, Where, merge, read_source
 
 SPEC_VERSION = 1
@@ -45,28 +46,47 @@ class ProfileError(SourceError):
     """A profile (or rig) that cannot be loaded; the message is ready for the user."""
 
 
+class Line(Schema):
+    """The `line` section of every family; `line_section` makes a family's, with its own choices."""
+
+    baud: int
+    data_bits: int
+    parity: str
+    stop_bits: float
+    flow_control: str
+
+
+class Config(Schema):
+    """Base of a family's profile dataclass: every family has a `line` section."""
+
+    line: Line
+
+
+C = TypeVar("C", bound=Config)
+
+
 @dataclass(frozen=True)
-class Profile:
-    """A resolved profile. `config` is the family's frozen dataclass (its `line` field included)."""
+class Profile(Generic[C]):
+    """A resolved profile. `config` is the family's frozen dataclass (its `line` section included),
+    so a model that takes a `Profile[Mp285Config]` reads typed values."""
 
     name: str
     source: str
     family: str
     description: str
     chain: tuple[str, ...]
-    config: Any
+    config: C
 
     @property
-    def line(self) -> Any:
+    def line(self) -> Line:
         return self.config.line
 
-    def describe(self) -> list[Any]:
-        fam = registry.family(self.family)
-        assert fam is not None
-        return describe_rows(fam.schema, self.config)
+    def describe(self) -> list[KnobRow]:
+        return describe_rows(self.config)
 
 
-def line_struct(
+def line_section(
+    name: str,
     bauds: tuple[int, ...],
     default_baud: int,
     rule: str,
@@ -75,18 +95,22 @@ def line_struct(
     data_bits: tuple[int, ...] = (8,),
     flow_controls: tuple[str, ...] = ("none",),
     default_flow: str = "none",
-) -> Struct:
-    """The `line` section shared by every family, restricted to what the device supports."""
-    return Struct(
-        "Line",
+) -> type[Line]:
+    """A family's `line` section, restricted to what the device supports: one class per family
+    because the choices live in its fields (the same five fields for every family)."""
+    fields = (
+        ("baud", int, setting(Int(choices=bauds), default_baud, rule, "device baud rate")),
+        ("data_bits", int, setting(Choice(data_bits), data_bits[-1], rule, "data bits per character")),
+        ("parity", str, setting(Choice(parities), "none", rule, "parity bit")),
+        ("stop_bits", float, setting(Choice(stop_bits), 1, rule, "stop bits")),
         (
-            Field("baud", Int(choices=bauds), default_baud, rule, "device baud rate"),
-            Field("data_bits", Choice(data_bits), data_bits[-1], rule, "data bits per character"),
-            Field("parity", Choice(parities), "none", rule, "parity bit"),
-            Field("stop_bits", Choice(stop_bits), 1, rule, "stop bits"),
-            Field("flow_control", Choice(flow_controls), default_flow, rule, "flow control the device uses"),
+            "flow_control",
+            str,
+            setting(Choice(flow_controls), default_flow, rule, "flow control the device uses"),
         ),
     )
+    cls: type[Line] = dataclasses.make_dataclass(name, fields, bases=(Line,), frozen=True)
+    return cls
 
 
 def bundled_dir() -> FsPath:
@@ -217,7 +241,7 @@ def _check_family(child: Located, parent_device: Any, parent_ref: str) -> None:
 
 def load_profile(
     ref: str, overrides: Located | dict[str, Any] | None = None, relative_to: FsPath | None = None
-) -> Profile:
+) -> Profile[Any]:
     """Load a bundled profile by name or a profile file by path, apply `overrides`, validate.
 
     `overrides` is merged last, like one more `extends` layer (a plain dict, e.g. from a test, or a
@@ -234,7 +258,7 @@ def load_profile(
     assert fam is not None  # _check_top refused unknown families
     body = {k: v for k, v in data.items() if k not in TOP_LEVEL_KEYS}
     try:
-        config = fam.schema.check(body, ())
+        config = Section(fam.schema).check(body, ())
     except SchemaError as exc:
         raise ProfileError(str(located.error(exc.path, exc.message))) from None
     return Profile(

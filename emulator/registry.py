@@ -6,28 +6,32 @@ import importlib
 import pkgutil
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
-
-from emulator.schema import Struct
+from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 if TYPE_CHECKING:
     from emulator.device import Device, HostServices
-    from emulator.profile import Profile
+    from emulator.profile import Config, Profile
+
+#: a family's profile dataclass (an `emulator.schema.Schema` with a `line` section)
+C = TypeVar("C", bound="Config")
 
 
 @dataclass(frozen=True)
-class Family:
+class Family(Generic[C]):
+    """`schema` is the profile's top dataclass; `factory` takes profiles of exactly that type, so
+    mypy checks a model against the schema it is registered with."""
+
     name: str
     summary: str
-    schema: Struct
-    factory: Callable[[str, Profile, float, HostServices], Device]
+    schema: type[C]
+    factory: Callable[[str, Profile[C], float, HostServices], Device]
 
 
-_families: dict[str, Family] = {}
+_families: dict[str, Family[Any]] = {}
 _loaded = False
 
 
-def register(family: Family) -> Family:
+def register(family: Family[C]) -> Family[C]:
     _families[family.name] = family
     return family
 
@@ -43,11 +47,11 @@ def _load_builtins() -> None:
             importlib.import_module(f"{package.__name__}.{info.name}")
 
 
-def families() -> dict[str, Family]:
+def families() -> dict[str, Family[Any]]:
     _load_builtins()
     return dict(_families)
 
 
-def family(name: str) -> Family | None:
+def family(name: str) -> Family[Any] | None:
     _load_builtins()
     return _families.get(name)

@@ -25,7 +25,19 @@ from typing import Any
 
 from emulator.line import TIMINGS
 from emulator.profile import DESCRIPTION, Profile, ProfileError, load_profile
-from emulator.schema import Choice, Field, Int, ListOf, Nullable, SchemaError, Str, Struct, Type
+from emulator.schema import (
+    Choice,
+    Int,
+    ListOf,
+    Nullable,
+    Schema,
+    SchemaError,
+    Section,
+    Str,
+    Type,
+    required,
+    setting,
+)
 from emulator.yamlsource import SourceError, read_source
 
 NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}"
@@ -44,35 +56,32 @@ class Anything(Type):
         return "mapping"
 
 
-PORT = Struct(
-    "RigPort",
-    (
-        Field("channel", Str(), "main", doc="device channel this port carries"),
-        Field("type", Choice(("pty",)), "pty", doc="transport"),
-        Field("link", Nullable(Str()), None, doc="stable path of the port (a symlink to the pts)"),
-        Field("mode", Int(0, 0o777), 0o600, doc="permissions of the pts device node"),
-        Field("timing", Nullable(Choice(TIMINGS)), None, doc="realistic (paced at the baud rate) or fast"),
-    ),
-)
-DEVICE = Struct(
-    "RigDevice",
-    (
-        Field(
-            "name", Str(pattern=NAME_PATTERN, pattern_text="letters, digits, '_', '.', '-'"), required=True
-        ),
-        Field("profile", Str(), required=True, doc="bundled profile name or path"),
-        Field("overrides", Nullable(Anything()), None, doc="profile keys to override"),
-        Field("ports", Nullable(ListOf(PORT, min_length=1)), None, doc="ports (default: one PTY)"),
-    ),
-)
-RIG = Struct(
-    "Rig",
-    (
-        Field("spec", Int(choices=(1,)), required=True),
-        Field("description", Nullable(DESCRIPTION), None),
-        Field("devices", ListOf(DEVICE, min_length=1), required=True),
-    ),
-)
+@dataclass(frozen=True)
+class RigPort(Schema):
+    channel: str = setting(Str(), "main", doc="device channel this port carries")
+    type: str = setting(Choice(("pty",)), "pty", doc="transport")
+    link: str | None = setting(Nullable(Str()), None, doc="stable path of the port (a symlink to the pts)")
+    mode: int = setting(Int(0, 0o777), 0o600, doc="permissions of the pts device node")
+    timing: str | None = setting(
+        Nullable(Choice(TIMINGS)), None, doc="realistic (paced at the baud rate) or fast"
+    )
+
+
+@dataclass(frozen=True)
+class RigDevice(Schema):
+    name: str = required(Str(pattern=NAME_PATTERN, pattern_text="letters, digits, '_', '.', '-'"))
+    profile: str = required(Str(), doc="bundled profile name or path")
+    overrides: dict[str, Any] | None = setting(Nullable(Anything()), None, doc="profile keys to override")
+    ports: tuple[RigPort, ...] | None = setting(
+        Nullable(ListOf(Section(RigPort), min_length=1)), None, doc="ports (default: one PTY)"
+    )
+
+
+@dataclass(frozen=True)
+class RigFile(Schema):
+    spec: int = required(Int(choices=(1,)))
+    description: str | None = setting(Nullable(DESCRIPTION), None)
+    devices: tuple[RigDevice, ...] = required(ListOf(Section(RigDevice), min_length=1))
 
 
 @dataclass(frozen=True)
@@ -103,14 +112,14 @@ def load_rig(path: FsPath) -> Rig:
     except SourceError as exc:
         raise ProfileError(str(exc)) from None
     try:
-        raw = RIG.check(located.data, ())
+        raw = Section(RigFile).check(located.data, ())
     except SchemaError as exc:
         raise ProfileError(str(located.error(exc.path, exc.message))) from None
     devices = []
     for index, dev in enumerate(raw.devices):
         overrides = located.subtree(("devices", index, "overrides")) if dev.overrides else None
         profile = load_profile(dev.profile, overrides, relative_to=path.parent)
-        ports = dev.ports or (PORT.check({}, ()),)
+        ports = dev.ports or (Section(RigPort).check({}, ()),)
         specs = tuple(
             PortSpec(p.channel, p.type, _link(p.link, path.parent), p.mode, p.timing) for p in ports
         )

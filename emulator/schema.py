@@ -1,8 +1,14 @@
-"""Typed profile fields: one declaration serves validation, defaults, frozen results and `describe`.
+"""Typed profile fields: one declaration serves validation, defaults, typed results and `describe`.
 
-A device family declares its profile as a `Struct` of fields. Each field knows its type and range,
-its default, the behaviour rule it implements (e.g. `MP-6`) and a one-line meaning, so the validator,
-the frozen dataclasses and `stage-emu describe` all come from the same list.
+A device family declares its profile as frozen dataclasses deriving from `Schema`. Every field is a
+`setting(type, default, rule, doc)`: a dataclass field whose metadata holds its checker (type and
+range), the behaviour rule it implements (e.g. `MP-6`) and a one-line meaning; a nested mapping is a
+setting of type `Section(cls)`. The validator (`Section.check`), the defaults and `stage-emu describe`
+read those fields, and mypy reads their annotations, so a misspelt `knobs.x` is a type error.
+
+A field's dataclass default is its default as a profile would write it (a `Derived` one is computed
+from the other fields): instances come from `Section.check`, which checks defaults like loaded values,
+never from calling the class.
 
 Numbers are always finite (`.nan` and `.inf` are refused); families give every duration, speed,
 distance and factor a maximum too, so no value can overflow the model. Strings the device itself
@@ -12,13 +18,14 @@ line and quote at most `SHOW_LIMIT` characters of a value.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
-import keyword
 import math
 import re
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import MISSING, dataclass, field
+from functools import partial
+from typing import Any, ClassVar, Generic, TypeVar
 
 Path = tuple[str | int, ...]
 SHOW_LIMIT = 60
@@ -245,72 +252,137 @@ class MapOf(Type):
         return f"map of {self.key.describe()} to {self.value.describe()}"
 
 
+class Schema:
+    """Base of the dataclasses a profile is declared with."""
+
+    __dataclass_fields__: ClassVar[dict[str, dataclasses.Field[Any]]]  # set by @dataclass
+
+    def validate(self, path: Path) -> None:
+        """Cross-field checks, run once every field is resolved; raise SchemaError."""
+
+
+S = TypeVar("S", bound=Schema)
+#: metadata key of a field's `Spec`
+SPEC = "schema"
+#: class attribute of an `extend`ed schema: its field names in validation and `describe` order
+ORDER = "_schema_order"
+
+
+@dataclass(frozen=True)
+class Spec:
+    """What a field of a profile dataclass is besides its name and default."""
+
+    type: Type
+    rule: str = ""
+    doc: str = ""
+
+
+def setting(kind: Type, default: Any = None, rule: str = "", doc: str = "") -> Any:
+    """A field of a profile dataclass: checker, default, the rule it implements and what it means.
+    Typed `Any` because the default is a profile value (or `Derived`), not one of the field's type."""
+    metadata = {SPEC: Spec(kind, rule, doc)}
+    if isinstance(default, dict | list):  # dataclasses refuse mutable defaults
+        return field(default_factory=partial(copy.deepcopy, default), metadata=metadata)
+    return field(default=default, metadata=metadata)
+
+
+def required(kind: Type, rule: str = "", doc: str = "") -> Any:
+    """A field without a default (keyword-only, so that it may follow fields with one)."""
+    return field(kw_only=True, metadata={SPEC: Spec(kind, rule, doc)})
+
+
+def spec_of(f: dataclasses.Field[Any]) -> Spec:
+    spec: Spec = f.metadata[SPEC]
+    return spec
+
+
+def default_of(f: dataclasses.Field[Any]) -> Any:
+    """A field's declared default; `MISSING` when it is required."""
+    if f.default_factory is not MISSING:
+        return f.default_factory()
+    return f.default
+
+
+def schema_fields(cls: type[Schema]) -> list[dataclasses.Field[Any]]:
+    """`cls`'s fields in validation and `describe` order: declaration order, with the fields
+    `extend` added where it put them."""
+    by_name = {f.name: f for f in dataclasses.fields(cls)}
+    return [by_name[name] for name in getattr(cls, ORDER, by_name)]
+
+
+@dataclass(frozen=True)
+class Section(Type, Generic[S]):
+    """A mapping with fixed keys, the fields of `cls`; results in a `cls`."""
+
+    cls: type[S]
+
+    def check(self, value: Any, path: Path) -> S:
+        if value is None:
+            value = {}
+        if not isinstance(value, dict):
+            raise SchemaError(path, f"{_show(value)} is not a mapping")
+        fields = schema_fields(self.cls)
+        known = {f.name for f in fields}
+        for key in value:
+            if key not in known:
+                raise SchemaError((*path, str(key)), f"unknown key; allowed here: {', '.join(sorted(known))}")
+        resolved: dict[str, Any] = {}
+        derived: list[tuple[str, Type, Derived]] = []
+        for f in fields:
+            kind, default, at = spec_of(f).type, default_of(f), (*path, f.name)
+            if f.name in value:
+                resolved[f.name] = kind.check(value[f.name], at)
+            elif default is MISSING:
+                raise SchemaError(at, "is required")
+            elif isinstance(default, Derived):
+                derived.append((f.name, kind, default))
+            elif isinstance(kind, Section):
+                resolved[f.name] = kind.check(default or {}, at)
+            else:
+                resolved[f.name] = None if default is None else kind.check(default, at)
+        for name, kind, rule in derived:
+            computed = rule.compute(resolved)
+            resolved[name] = None if computed is None else kind.check(computed, (*path, name))
+        result = self.cls(**resolved)
+        result.validate(path)
+        return result
+
+    def describe(self) -> str:
+        return "mapping"
+
+
 @dataclass(frozen=True)
 class Field:
-    """One key of a struct: its type, default, the rule it implements and what it means."""
+    """A field added to a schema at run time (by an MS2000 module, see `extend`)."""
 
     name: str
     type: Type
     default: Any = None
     rule: str = ""
     doc: str = ""
-    required: bool = False
 
 
-@dataclass(frozen=True)
-class Struct(Type):
-    """A mapping with fixed keys; results in a frozen dataclass named `name`."""
-
-    name: str
-    fields: tuple[Field, ...]
-    #: cross-field check run after the defaults are resolved; raises SchemaError
-    validate: Callable[[Mapping[str, Any], Path], None] | None = None
-    _cls: list[type] = field(default_factory=list, compare=False, repr=False)
-
-    def field_named(self, name: str) -> Field | None:
-        return next((f for f in self.fields if f.name == name), None)
-
-    def dataclass(self) -> type:
-        if not self._cls:
-            names = [(_attr(f.name), Any) for f in self.fields]
-            self._cls.append(dataclasses.make_dataclass(self.name, names, frozen=True))
-        return self._cls[0]
-
-    def check(self, value: Any, path: Path) -> Any:
-        if value is None:
-            value = {}
-        if not isinstance(value, dict):
-            raise SchemaError(path, f"{_show(value)} is not a mapping")
-        known = {f.name for f in self.fields}
-        for key in value:
-            if key not in known:
-                raise SchemaError((*path, str(key)), f"unknown key; allowed here: {', '.join(sorted(known))}")
-        resolved: dict[str, Any] = {}
-        derived: list[Field] = []
-        for f in self.fields:
-            if f.name in value:
-                resolved[f.name] = f.type.check(value[f.name], (*path, f.name))
-            elif f.required:
-                raise SchemaError((*path, f.name), "is required")
-            elif isinstance(f.default, Derived):
-                derived.append(f)
-            elif isinstance(f.type, Struct):
-                resolved[f.name] = f.type.check(f.default or {}, (*path, f.name))
-            else:
-                resolved[f.name] = f.type.check(f.default, (*path, f.name)) if f.default is not None else None
-        for f in derived:
-            default = f.default.compute(resolved)
-            resolved[f.name] = None if default is None else f.type.check(default, (*path, f.name))
-        if self.validate is not None:
-            self.validate(resolved, path)
-        return self.dataclass()(**{_attr(k): v for k, v in resolved.items()})
-
-    def describe(self) -> str:
-        return "mapping"
-
-
-def _attr(name: str) -> str:
-    return f"{name}_" if keyword.iskeyword(name) else name
+def extend(
+    cls: type[S],
+    extra: Sequence[Field],
+    before: str | None = None,
+    sections: Mapping[str, type[Schema]] | None = None,
+) -> type[S]:
+    """A subclass of `cls` with the fields `extra` (validated and described just before field
+    `before`, else last) and with the nested sections named in `sections` given those classes."""
+    own: list[tuple[str, Any, Any]] = [
+        (f.name, Any, setting(f.type, f.default, f.rule, f.doc)) for f in extra
+    ]
+    inherited = {f.name: f for f in dataclasses.fields(cls)}
+    for name, sub in (sections or {}).items():
+        spec = spec_of(inherited[name])
+        own.append((name, sub, setting(Section(sub), default_of(inherited[name]), spec.rule, spec.doc)))
+    order = [f.name for f in schema_fields(cls)]
+    at = order.index(before) if before is not None else len(order)
+    order[at:at] = [f.name for f in extra]
+    return dataclasses.make_dataclass(
+        cls.__name__, own, bases=(cls,), namespace={ORDER: tuple(order)}, frozen=True
+    )
 
 
 @dataclass(frozen=True)
@@ -326,28 +398,29 @@ class KnobRow:
 
 
 def describe_rows(
-    struct: Struct, value: Any, prefix: str = "", defaults: Mapping[str, Any] | None = None
+    value: Schema, prefix: str = "", defaults: Mapping[str, Any] | None = None
 ) -> list[KnobRow]:
-    """Flatten a resolved struct into rows (value, default, rule, meaning) in declaration order.
-    Per-key tables of structs (MapOf(Struct), e.g. axes) get one row per key and field; `defaults`
-    carries a table's per-key default entries, which take precedence over the field defaults."""
+    """Flatten a resolved profile (or section) into rows (value, default, rule, meaning) in field
+    order. Per-key tables of sections (MapOf(Section), e.g. axes) get one row per key and field;
+    `defaults` carries a table's per-key default entries, which take precedence over the field
+    defaults."""
     rows: list[KnobRow] = []
     defaults = defaults or {}
-    for f in struct.fields:
-        current = getattr(value, _attr(f.name))
+    for f in schema_fields(type(value)):
+        spec = spec_of(f)
+        current = getattr(value, f.name)
         path = f"{prefix}{f.name}"
-        default = defaults.get(f.name, f.default)
-        if isinstance(f.type, Struct):
-            nested = default if isinstance(default, dict) else None
-            rows.extend(describe_rows(f.type, current, path + ".", nested))
+        default = defaults.get(f.name, default_of(f))
+        if isinstance(spec.type, Section):
+            rows.extend(describe_rows(current, path + ".", default if isinstance(default, dict) else None))
             continue
-        if isinstance(f.type, MapOf) and isinstance(f.type.value, Struct) and current:
+        if isinstance(spec.type, MapOf) and isinstance(spec.type.value, Section) and current:
             table = default if isinstance(default, dict) else {}
             for key, entry in current.items():
-                rows.extend(describe_rows(f.type.value, entry, f"{path}.{key}.", table.get(key)))
+                rows.extend(describe_rows(entry, f"{path}.{key}.", table.get(key)))
             continue
         shown = DerivedDefault(default.text) if isinstance(default, Derived) else default
-        rows.append(KnobRow(path, plain(current), shown, f.rule, f.doc, f.type.describe()))
+        rows.append(KnobRow(path, plain(current), shown, spec.rule, spec.doc, spec.type.describe()))
     return rows
 
 
@@ -364,7 +437,7 @@ class DerivedDefault:
 def plain(value: Any) -> Any:
     """A resolved value as plain data (dataclasses to dicts, tuples to lists)."""
     if dataclasses.is_dataclass(value) and not isinstance(value, type):
-        return {f.name.rstrip("_"): plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
+        return {f.name: plain(getattr(value, f.name)) for f in dataclasses.fields(value)}
     if isinstance(value, tuple | list):
         return [plain(v) for v in value]
     if isinstance(value, dict):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import pytest
@@ -17,10 +18,14 @@ from emulator.schema import (
     ListOf,
     MapOf,
     Nullable,
+    Schema,
     SchemaError,
+    Section,
     Str,
-    Struct,
     describe_rows,
+    extend,
+    required,
+    setting,
 )
 
 PROBE = Path(__file__).parent.parent / "support" / "probe.yaml"
@@ -119,18 +124,20 @@ def test_missing_file() -> None:
     assert "no such profile" in error_of("definitely-not-bundled")
 
 
-NESTED = Struct(
-    "Nested",
-    (
-        Field("count", Int(1, 10), 3, "R-1", "a count"),
-        Field("ratio", Float(0, exclusive_minimum=True), 1.0),
-        Field("mode", Choice(("a", "b")), "a"),
-        Field("name", Str(max_length=4, pattern=r"[a-z]+", pattern_text="lower-case letters"), "ab"),
-        Field("axes", ListOf(Int(), length=3), Derived(lambda v: [v["count"]] * 3, "count per axis")),
-        Field("table", MapOf(Str(pattern="[XYZ]", pattern_text="an axis letter"), Int()), {}),
-        Field("limit", Nullable(Int(0)), None),
-    ),
-)
+@dataclass(frozen=True)
+class Nested(Schema):
+    count: int = setting(Int(1, 10), 3, "R-1", "a count")
+    ratio: float = setting(Float(0, exclusive_minimum=True), 1.0)
+    mode: str = setting(Choice(("a", "b")), "a")
+    name: str = setting(Str(max_length=4, pattern=r"[a-z]+", pattern_text="lower-case letters"), "ab")
+    axes: tuple[int, ...] = setting(
+        ListOf(Int(), length=3), Derived(lambda v: [v["count"]] * 3, "count per axis")
+    )
+    table: dict[str, int] = setting(MapOf(Str(pattern="[XYZ]", pattern_text="an axis letter"), Int()), {})
+    limit: int | None = setting(Nullable(Int(0)), None)
+
+
+NESTED = Section(Nested)
 
 
 @pytest.mark.parametrize(
@@ -175,20 +182,24 @@ def test_describe_rows_carry_rule_and_default() -> None:
     assert by_path["knobs.pace_line"].default is True
 
 
-AXIS = Struct("Axis", (Field("pitch", Float(0), 6.35, "R-2", "screw pitch"), Field("gain", Int(), 10)))
-TABLES = Struct(
-    "Tables",
-    (
-        Field("axes", MapOf(Str(), AXIS), {"X": {}, "Z": {"pitch": 1.5}}, "R-3", "per-axis mechanics"),
-        Field("count", Int(), 3),
-        Field("double", Int(), Derived(lambda v: 2 * v["count"], "twice count")),
-    ),
-)
+@dataclass(frozen=True)
+class Axis(Schema):
+    pitch: float = setting(Float(0), 6.35, "R-2", "screw pitch")
+    gain: int = setting(Int(), 10)
+
+
+@dataclass(frozen=True)
+class Tables(Schema):
+    axes: dict[str, Axis] = setting(
+        MapOf(Str(), Section(Axis)), {"X": {}, "Z": {"pitch": 1.5}}, "R-3", "per-axis mechanics"
+    )
+    count: int = setting(Int(), 3)
+    double: int = setting(Int(), Derived(lambda v: 2 * v["count"], "twice count"))
 
 
 def test_describe_rows_flatten_per_key_tables_with_their_defaults() -> None:
-    resolved = TABLES.check({"axes": {"X": {"gain": 4}, "Z": {"pitch": 1.5}}}, ())
-    rows = {row.path: row for row in describe_rows(TABLES, resolved)}
+    resolved = Section(Tables).check({"axes": {"X": {"gain": 4}, "Z": {"pitch": 1.5}}}, ())
+    rows = {row.path: row for row in describe_rows(resolved)}
     assert list(rows) == ["axes.X.pitch", "axes.X.gain", "axes.Z.pitch", "axes.Z.gain", "count", "double"]
     assert (rows["axes.X.gain"].value, rows["axes.X.gain"].default) == (4, 10)
     assert (rows["axes.Z.pitch"].value, rows["axes.Z.pitch"].default, rows["axes.Z.pitch"].rule) == (
@@ -198,3 +209,45 @@ def test_describe_rows_flatten_per_key_tables_with_their_defaults() -> None:
     )
     assert rows["double"].value == 6
     assert str(rows["double"].default) == "(twice count)"
+
+
+@dataclass(frozen=True)
+class Keyed(Schema):
+    key: str = required(Str(), "R-4", "the key")
+    note: str = setting(Str(), "")
+    also: int = required(Int())
+
+    def validate(self, path: tuple[str | int, ...]) -> None:
+        if self.key == self.note:
+            raise SchemaError((*path, "note"), "repeats the key")
+
+
+def test_required_fields_and_cross_field_check() -> None:
+    with pytest.raises(SchemaError) as info:
+        Section(Keyed).check({"also": 1}, ("top",))
+    assert (info.value.path, info.value.message) == (("top", "key"), "is required")
+    with pytest.raises(SchemaError) as info:
+        Section(Keyed).check({"key": "k", "note": "k", "also": 1}, ("top",))
+    assert (info.value.path, info.value.message) == (("top", "note"), "repeats the key")
+    assert Section(Keyed).check({"key": "k", "also": 2}, ()) == Keyed(key="k", note="", also=2)
+
+
+@dataclass(frozen=True)
+class Outer(Schema):
+    axis: Axis = setting(Section(Axis), None, "R-6", "one axis")
+
+
+def test_extend_adds_run_time_fields_in_place_and_swaps_sections() -> None:
+    """How MS2000 modules add their fields: `before` places them, `sections` extends a sub-struct."""
+    tables = extend(Tables, [Field("extra", Choice(("a", "b")), "a")], before="count")
+    assert [row.path for row in describe_rows(Section(tables).check({}, ()))][-3:] == [
+        "extra",
+        "count",
+        "double",
+    ]
+    axis = extend(Axis, [Field("ratio", Int(1), 2, "R-5", "added to every axis")])
+    outer = Section(extend(Outer, [], sections={"axis": axis})).check({"axis": {"ratio": 3}}, ())
+    assert isinstance(outer, Outer) and isinstance(outer.axis, Axis)
+    assert [(row.path, row.value, row.rule) for row in describe_rows(outer)][-1] == ("axis.ratio", 3, "R-5")
+    with pytest.raises(SchemaError, match="unknown key; allowed here: gain, pitch, ratio"):
+        Section(extend(Outer, [], sections={"axis": axis})).check({"axis": {"nope": 1}}, ())

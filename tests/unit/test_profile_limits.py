@@ -9,17 +9,29 @@ import pytest
 
 from emulator.profile import MAX_CHAIN, ProfileError, load_profile
 from emulator.registry import family
-from emulator.schema import ListOf, MapOf, Nullable, Number, Str, Struct, Text, Type
+from emulator.schema import (
+    ListOf,
+    MapOf,
+    Nullable,
+    Number,
+    Schema,
+    Section,
+    Str,
+    Text,
+    Type,
+    schema_fields,
+    spec_of,
+)
 
 #: numbers bounded by a cross-field check instead of their own range (MP-30: positions in 32 bits)
 CHECKED_ELSEWHERE = {"stage.origin_usteps_from_bot"}
 
 
-def numbers(struct: Struct, prefix: str = "") -> dict[str, Number]:
+def numbers(schema: type[Schema], prefix: str = "") -> dict[str, Number]:
     """Every number field of a schema, by dotted path."""
     found: dict[str, Number] = {}
-    for f in struct.fields:
-        kind: Type = f.type
+    for f in schema_fields(schema):
+        kind: Type = spec_of(f).type
         while isinstance(kind, Nullable | ListOf | MapOf):
             kind = (
                 kind.inner
@@ -28,8 +40,8 @@ def numbers(struct: Struct, prefix: str = "") -> dict[str, Number]:
                 if isinstance(kind, ListOf)
                 else kind.value
             )
-        if isinstance(kind, Struct):
-            found.update(numbers(kind, f"{prefix}{f.name}."))
+        if isinstance(kind, Section):
+            found.update(numbers(kind.cls, f"{prefix}{f.name}."))
         elif isinstance(kind, Number):
             found[f"{prefix}{f.name}"] = kind
     return found
