@@ -177,7 +177,7 @@ class ControlServer:
                 }
             return runner.call(lambda now: runner.device.observe(name, now))
         if op == "snapshot":
-            return _at_path(runner.call(lambda now: runner.device.snapshot()), request.get("path"))
+            return _at_path(runner.call(lambda now: runner.device.snapshot(now)), request.get("path"))
         if op == "names":
             return runner.device.control_names()
         if op == "reset":

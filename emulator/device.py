@@ -5,19 +5,27 @@ descriptor, a socket, a thread or the wall clock: the host feeds it bytes stampe
 asks it when it next needs to act, lets it act, and drains an outbox of timed bytes. The same model
 then runs under a PTY, over TCP, in-process and in a unit test on a manual clock, deterministically.
 
+The `Device` base holds what every model shares, as template methods (public method here, the
+model's part in the protected hook): `advance(now)` keeps `self.now`, the latest device time the
+model has been brought to, then calls `_advance(now)`; `receive(data, now)` advances to `now` first,
+then calls `_receive(data, now)`, so a model only ever receives with every earlier event processed.
+
 Host obligations (see emulator/runner.py):
 - Times passed in are non-decreasing across all calls.
-- Before calling `receive(data, t)` the host calls `advance(t)`, so the model has processed every
-  internal event due at or before `t`.
+- Before a call stamped `now` other than `receive` (`line_changed`, `control_input`, `observe`,
+  `snapshot`) the host has called `advance(now)`.
 - Whenever `next_deadline()` returns a time, the host calls `advance()` no later than that time
   (with a real clock, possibly a little later: the model must stamp its outputs with the exact
   instant the event was due, never with the `now` it was called at).
-- After every call the host drains `take_output()` and `take_events()`.
+- After every call the host drains `take_output()`, `take_events()` and `take_rx_notes()`.
 
 Model obligations:
 - `Emission.due` is the device instant at which the bytes are handed to the device's transmitter;
   the line layer (emulator/line.py) then paces them at the character rate.
 - Bad input never raises: it produces whatever the real device does with it.
+- While `explain` is set (the host keeps a traffic log) it says what it did with the bytes: an
+  `RxNote` per unit of input (a command, a garbled character, bytes lost or stray) and a summary on
+  each `Emission`. While it is clear nothing is formatted: the hot path pays one attribute test.
 """
 
 from __future__ import annotations
@@ -76,13 +84,62 @@ class LineSettings(HostLine):
     fields stay optional until those build `HostLine` instead."""
 
 
+# Kinds of traffic-log records (emulator/trafficlog.py). Received bytes:
+FRAME = "frame"  # a complete command (or control sequence) the device acted on
+GARBLED = "garbled"  # a character the line mismatch corrupted, as the receiving end read it
+LOST = "lost"  # bytes the device never acted on: deaf, busy, silenced, hung, dropped at reset ...
+STRAY = "stray"  # bytes outside any command: discarded junk, a bad frame, a lone terminator
+# Sent bytes (and GARBLED, LOST):
+REPLY = "reply"  # the answer to a command
+UNSOLICITED = "unsolicited"  # sent on the device's own account (a report, a crash signature)
+
+
 @dataclass(frozen=True)
 class Emission:
-    """Bytes the device hands to its transmitter at device time `due`, on one of its channels."""
+    """Bytes the device hands to its transmitter at device time `due`, on one of its channels.
+    `kind` and `summary` say what they are for the traffic log; the summary is set only while the
+    model explains (`Device.explain`), e.g. `reply to c: position X=10 Y=0 Z=0 (µsteps)`."""
 
     due: float
     data: bytes
     channel: str = MAIN
+    kind: str = REPLY
+    summary: str | None = None
+
+
+@dataclass(frozen=True)
+class RxNote:
+    """What the device made of a unit of received bytes (`kind`: FRAME, GARBLED, LOST or STRAY),
+    complete at device time `t`; `data` as the device's receiver read it."""
+
+    t: float
+    kind: str
+    data: bytes
+    summary: str
+    channel: str = MAIN
+
+
+class Notes:
+    """A model's notes on its input for the traffic log. Collaborators of a model hold it and test
+    `on` before they format anything."""
+
+    def __init__(self) -> None:
+        self.on = False
+        self._rx: list[RxNote] = []
+
+    def rx(self, t: float, kind: str, data: bytes, summary: str, channel: str = MAIN) -> None:
+        """Note a unit of input. Lost bytes right after lost bytes for the same reason extend that
+        note until the host takes it, so a chunk dropped while deaf is one record, not one per
+        byte (bytes paced in one by one across host steps stay one record each)."""
+        last = self._rx[-1] if self._rx else None
+        if kind == LOST and last and (last.kind, last.summary, last.channel) == (kind, summary, channel):
+            self._rx[-1] = RxNote(t, kind, last.data + data, summary, channel)
+            return
+        self._rx.append(RxNote(t, kind, bytes(data), summary, channel))
+
+    def take(self) -> list[RxNote]:
+        out, self._rx = self._rx, []
+        return out
 
 
 class Store(Protocol):
@@ -150,21 +207,42 @@ class Device(ABC):
         self.profile = profile
         self.services = services
         self.log = logging.getLogger(f"stage_emu.device.{name}")
+        #: the latest device time the model has been advanced to (for work the host triggers
+        #: between calls, such as a store's report); kept by `advance`
+        self.now = now
+        #: notes on received bytes, collected while `explain` is set
+        self.notes = Notes()
         #: timed bytes for the host and pushed control-channel events, drained by the take_* methods
         self._outbox: list[Emission] = []
         self._events: list[dict[str, Any]] = []
 
-    @abstractmethod
-    def receive(self, data: bytes, now: float, channel: str = MAIN) -> None:
-        """Bytes completely received from the host at device time `now`."""
+    # ---- the time skeleton: public template methods, the model's hooks -------------------------
 
-    @abstractmethod
+    def receive(self, data: bytes, now: float, channel: str = MAIN) -> None:
+        """Bytes completely received from the host at device time `now`: every internal event due
+        by then is processed first."""
+        self.advance(now)
+        self._receive(data, now, channel)
+
     def advance(self, now: float) -> None:
         """Process every internal event due at or before `now`."""
+        if now > self.now:
+            self.now = now
+        self._advance(now)
+
+    @abstractmethod
+    def _receive(self, data: bytes, now: float, channel: str) -> None:
+        """The model's part of `receive`, called with the model advanced to `now`."""
+
+    @abstractmethod
+    def _advance(self, now: float) -> None:
+        """The model's part of `advance`."""
 
     @abstractmethod
     def next_deadline(self) -> float | None:
         """Device time of the next internal event, or None when nothing is scheduled."""
+
+    # ---- what the host drains ----------------------------------------------------------------
 
     def take_output(self) -> list[Emission]:
         """Drain the outbox."""
@@ -175,6 +253,22 @@ class Device(ABC):
         """Drain pushed control-channel events (`{"ev": name, ...}`)."""
         out, self._events = self._events, []
         return out
+
+    @property
+    def explain(self) -> bool:
+        """Set by a host that logs traffic: the model then notes what it makes of its input and
+        summarises its output."""
+        return self.notes.on
+
+    @explain.setter
+    def explain(self, on: bool) -> None:
+        self.notes.on = on
+
+    def take_rx_notes(self) -> list[RxNote]:
+        """Drain the notes on received bytes (empty unless `explain`)."""
+        return self.notes.take()
+
+    # ---- the line ----------------------------------------------------------------------------
 
     @abstractmethod
     def line_settings(self, channel: str = MAIN) -> LineSettings:
@@ -189,13 +283,16 @@ class Device(ABC):
         e.g. `traffic will be garbled (line_mismatch=garble)`."""
         return ""
 
+    # ---- control channel ---------------------------------------------------------------------
+
     @abstractmethod
-    def snapshot(self) -> dict[str, Any]:
-        """Full observable state as plain JSON-able data (control channel `snapshot`)."""
+    def snapshot(self, now: float) -> dict[str, Any]:
+        """Full observable state at device time `now` as plain JSON-able data (control channel
+        `snapshot`)."""
 
     def observe(self, name: str, now: float) -> Any:
         """Control-channel read `{"get": name}`. Default: a top-level key of the snapshot."""
-        state = self.snapshot()
+        state = self.snapshot(now)
         if name not in state:
             raise ControlError(f"{self.name}: no observable {name!r}; known: {', '.join(sorted(state))}")
         return state[name]
@@ -207,13 +304,7 @@ class Device(ABC):
     def control_names(self) -> dict[str, list[str]]:
         """The names `control_input` and `observe` accept (`ctl get DEVICE`, `ctl input --help`).
         Default: no inputs; the snapshot's top-level keys as observables."""
-        return {"inputs": [], "observables": sorted(self.snapshot())}
-
-    def summarize(self, direction: str, data: bytes) -> str | None:
-        """One-line decoded summary of traffic for the traffic log (`rx` from host, `tx` to host).
-        `data` is what the host handed over or what left the port in one piece; on a paced port
-        that is one byte at a time, so a model that wants whole replies keeps its own context."""
-        return None
+        return {"inputs": [], "observables": sorted(self.snapshot(self.now))}
 
     def forget_nonvolatile(self) -> None:
         """Erase whatever the model keeps across power cycles (saved settings), before a factory

@@ -84,8 +84,3 @@ class Trapezoid:
         if t <= total - ramp:
             return self.peak_speed
         return self.accel * (total - t)
-
-
-def round_half_away(value: float) -> int:
-    """Round to the nearest integer, halves away from zero (firmware rounding in both families)."""
-    return math.floor(abs(value) + 0.5) * (1 if value >= 0 else -1)

@@ -1,6 +1,10 @@
 """Hosts one sans-I/O device model: feeds it paced host bytes, runs its timers on the clock, paces its
 output onto its ports, applies injected faults, logs traffic and line mismatches.
 
+With a traffic log the runner sets the model's `explain` and logs what the model reports: its notes
+on received bytes, and each emission's summary when its last byte leaves the port. It adds what it
+drops itself (emulator/trafficlog.py has the record format).
+
 The runner is transport-agnostic and clock-agnostic. With a real or scaled clock and an asyncio loop
 it arms one timer for the next thing due (no polling); with a manual clock it runs whenever the test
 moves the clock.
@@ -10,21 +14,17 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
 from typing import Any
 
 from emulator.clock import Clock
 from emulator.device import Device, Emission, HostLine
-from emulator.line import REALISTIC, Pacer, mismatches, settings_char_time
-from emulator.trafficlog import TrafficLog
+from emulator.line import REALISTIC, mismatches, settings_char_time
+from emulator.port import CORRUPT_MASK, Channel, Faults, fault_params, unsent
+from emulator.trafficlog import DeviceTraffic, TrafficLog
 from emulator.transports.base import Transport
 
 log = logging.getLogger("stage_emu.runner")
-
-#: the value each corrupted byte is XORed with (`corrupt` fault)
-CORRUPT_MASK = 0xFF
 
 #: Host input a port has taken but the device has not yet received (its wire time has not ended),
 #: per port, in bytes. At this backlog the port stops reading, so a host writing faster than its
@@ -36,74 +36,6 @@ INPUT_BACKLOG = 4096
 #: reading too (the device is busy sending), so a host sending commands faster than their replies
 #: can go out does not queue replies without limit.
 OUTPUT_BACKLOG = 4096
-
-#: Fault parameters: the ones each fault takes, and the range of each (a day, a million replies or
-#: bytes, a minute). JSON lets NaN, Infinity and 1e300 through; these ranges keep them out.
-FAULT_PARAMS: dict[str, tuple[str, ...]] = {
-    "disconnect": ("seconds",),
-    "hang": ("seconds",),
-    "drop": ("count",),
-    "corrupt": ("count",),
-    "latency": ("ms",),
-    "clear": (),
-}
-PARAM_RANGES: dict[str, tuple[int, int]] = {
-    "seconds": (0, 86400),
-    "count": (1, 1_000_000),
-    "ms": (0, 60000),
-}
-
-
-@dataclass
-class Faults:
-    """Injected port faults (control channel `fault`)."""
-
-    hung: bool = False
-    drop_replies: int = 0
-    corrupt_bytes: int = 0
-    latency_s: float = 0.0
-    vanished: bool = False
-
-    def describe(self) -> dict[str, Any]:
-        return {
-            "hung": self.hung,
-            "drop_replies": self.drop_replies,
-            "corrupt_bytes": self.corrupt_bytes,
-            "latency_ms": self.latency_s * 1000,
-            "disconnected": self.vanished,
-        }
-
-
-@dataclass
-class PortStats:
-    """What one port lost because its host did not keep up (counted since the daemon started)."""
-
-    #: device output the host's full receive buffer could not take (an overrun)
-    output_dropped: int = 0
-    #: host input discarded before the device received it: left in the port, or still on the
-    #: emulated wire, when the host hung up
-    input_discarded: int = 0
-    #: output is being dropped now (the warning is logged once, when this starts)
-    dropping: bool = False
-
-    def describe(self) -> dict[str, Any]:
-        return {"output_dropped": self.output_dropped, "input_discarded": self.input_discarded}
-
-
-@dataclass
-class Channel:
-    """One port of the device: its transport, host state, pacing in both directions and faults."""
-
-    name: str
-    timing: str = REALISTIC
-    transport: Transport | None = None
-    attached: bool = False
-    host: HostLine | None = None
-    to_host: Pacer = field(default_factory=Pacer)
-    from_host: Pacer = field(default_factory=Pacer)
-    faults: Faults = field(default_factory=Faults)
-    stats: PortStats = field(default_factory=PortStats)
-    reported_mismatch: tuple[Any, ...] = ()
 
 
 class _ChannelSink:
@@ -129,7 +61,7 @@ class _ChannelSink:
         return self._runner.input_room(self._channel)
 
     def input_discarded(self, count: int) -> None:
-        self._channel.stats.input_discarded += count
+        self._runner.input_discarded(self._channel, count)
 
 
 class DeviceRunner:
@@ -145,9 +77,10 @@ class DeviceRunner:
         self._make_device = make_device
         self.clock = clock
         self.device = make_device(clock.now())
+        self.device.explain = traffic is not None
+        self._traffic = None if traffic is None else DeviceTraffic(traffic, self.device.name)
         self.channels: dict[str, Channel] = {name: Channel(name) for name in self.device.channels}
         self._loop = loop
-        self._traffic = traffic
         self._on_event = on_event
         self._timer: asyncio.TimerHandle | None = None
         self._timer_due: float | None = None
@@ -185,8 +118,7 @@ class DeviceRunner:
 
     def host_attached(self, ch: Channel, host: HostLine | None) -> None:
         ch.attached = True
-        ch.to_host.clear()
-        ch.from_host.clear()
+        self._clear_wire(ch, "a new host attached")
         log.info("%s/%s: host attached", self.name, ch.name)
         self._set_host(ch, host)
 
@@ -195,8 +127,7 @@ class DeviceRunner:
         unheard = len(ch.from_host)
         ch.stats.input_discarded += unheard
         ch.stats.dropping = False
-        ch.to_host.clear()
-        ch.from_host.clear()
+        self._clear_wire(ch, "the host hung up")
         ch.reported_mismatch = ()
         lost = f"; {unheard} bytes still on the wire discarded" if unheard else ""
         log.info("%s/%s: host detached%s", self.name, ch.name, lost)
@@ -213,11 +144,32 @@ class DeviceRunner:
         self.pump()
 
     def host_data(self, ch: Channel, data: bytes) -> None:
-        now = self.clock.now()
-        if self._traffic is not None:
-            self._traffic.record(now, self.name, ch.name, "rx", data, self.device.summarize("rx", data))
-        ch.from_host.push(now, data)  # even when hung: the bytes still take their time on the wire
+        # logged by the model once received (or by `_due_input` if a hung device hears nothing)
+        ch.from_host.push(self.clock.now(), data)  # even when hung: the bytes take their wire time
         self.pump()
+
+    def input_discarded(self, ch: Channel, count: int) -> None:
+        """The transport discarded input it had not handed over (the host hung up)."""
+        ch.stats.input_discarded += count
+        if self._traffic is not None:
+            why = f"the host hung up: {count} bytes left in the port discarded"
+            self._traffic.lost_rx(self.clock.now(), ch.name, b"", why)
+            self._traffic.flush()
+
+    def _clear_wire(self, ch: Channel, why: str, to_host_only: bool = False) -> None:
+        """Forget what is on the wire in both directions (or only the device's output)."""
+        traffic = self._traffic
+        if traffic is not None:
+            now = self.clock.now()
+            traffic.discard(now, ch.name, f"not sent: {why}")
+            if not to_host_only:
+                unheard = b"".join(data for _, data in ch.from_host.take_due(ch.from_host.wire_free))
+                if unheard:
+                    traffic.lost_rx(now, ch.name, unheard, f"still on the wire when {why}")
+            traffic.flush()
+        ch.to_host.clear()
+        if not to_host_only:
+            ch.from_host.clear()
 
     def input_room(self, ch: Channel) -> int:
         """Host bytes `ch` may take now (PortSink.room): 0 while either direction is backed up."""
@@ -243,11 +195,12 @@ class DeviceRunner:
         self._run_actions(now)
         self._refresh_pacing()
         for t, channel, data in self._due_input(now):
-            self.device.advance(t)
             self.device.receive(data, t, channel)
         self.device.advance(now)
         self._collect_output()
         self._write_due(now)
+        if self._traffic is not None:
+            self._traffic.flush()
         self._check_mismatch()
         self._resume_reading()
         self._arm_timer()
@@ -264,6 +217,9 @@ class DeviceRunner:
                 arrived = [(t, ch.name, data) for t, data in ch.from_host.take_due(now)]
             if not ch.faults.hung:  # a hung device hears nothing that arrives
                 due.extend(arrived)
+            elif arrived and self._traffic is not None:
+                data = b"".join(data for _, _, data in arrived)
+                self._traffic.lost_rx(arrived[-1][0], ch.name, data, "hang fault: the device hears nothing")
         due.sort(key=lambda item: item[0])
         return due
 
@@ -276,6 +232,9 @@ class DeviceRunner:
             ch.from_host.per_char = settings_char_time(host, own) if realistic else 0.0
 
     def _collect_output(self) -> None:
+        if self._traffic is not None:
+            for note in self.device.take_rx_notes():
+                self._traffic.rx(note)
         emissions = sorted(self.device.take_output(), key=lambda e: e.due)
         for emission in emissions:
             self._route(emission)
@@ -286,31 +245,41 @@ class DeviceRunner:
 
     def _route(self, emission: Emission) -> None:
         ch = self.channels.get(emission.channel)
-        if ch is None or not ch.attached or ch.faults.hung or ch.faults.vanished:
-            return  # no output while detached: a real UART would send into the void
+        if ch is None:
+            return
+        why = unsent(ch)
+        if why is not None:  # no output while detached: a real UART would send into the void
+            if self._traffic is not None:
+                self._traffic.lost_tx(emission.due, emission, f"not sent: {why}")
+            return
         if ch.faults.drop_replies > 0:
             ch.faults.drop_replies -= 1
+            if self._traffic is not None:
+                self._traffic.lost_tx(emission.due, emission, "not sent: drop fault")
             return
         data = emission.data
+        count = 0
         if ch.faults.corrupt_bytes > 0:
             count = min(ch.faults.corrupt_bytes, len(data))
             data = bytes(b ^ CORRUPT_MASK for b in data[:count]) + data[count:]
             ch.faults.corrupt_bytes -= count
         ch.to_host.push(emission.due + ch.faults.latency_s, data)
+        if self._traffic is not None:
+            self._traffic.queued(emission, data, count)
 
     def _write_due(self, now: float) -> None:
         for ch in self.channels.values():
             for t, data in ch.to_host.take_due(now):
-                if ch.transport is None or not ch.attached:
-                    continue
-                dropped = ch.transport.write(data)
-                if dropped:
-                    self._output_dropped(ch, dropped)
-                elif ch.stats.dropping:
-                    ch.stats.dropping = False
-                    log.info("%s/%s: host takes output again", self.name, ch.name)
+                dropped = len(data)
+                if ch.transport is not None and ch.attached:
+                    dropped = ch.transport.write(data)
+                    if dropped:
+                        self._output_dropped(ch, dropped)
+                    elif ch.stats.dropping:
+                        ch.stats.dropping = False
+                        log.info("%s/%s: host takes output again", self.name, ch.name)
                 if self._traffic is not None:
-                    self._traffic.record(t, self.name, ch.name, "tx", data, self.device.summarize("tx", data))
+                    self._traffic.left(t, ch.name, len(data), dropped)
 
     def _output_dropped(self, ch: Channel, count: int) -> None:
         ch.stats.output_dropped += count
@@ -391,9 +360,9 @@ class DeviceRunner:
         now = self.clock.now()
         self.device.forget_nonvolatile()
         self.device = self._make_device(now)
+        self.device.explain = self._traffic is not None
         for ch in self.channels.values():
-            ch.to_host.clear()
-            ch.from_host.clear()
+            self._clear_wire(ch, "a factory reset")
             ch.reported_mismatch = ()
             if ch.attached:
                 self.device.line_changed(ch.host, now, ch.name)
@@ -406,13 +375,13 @@ class DeviceRunner:
             raise ValueError(
                 f"{self.name}: no port {channel!r} (this device has: {', '.join(self.channels)})"
             )
-        values = _fault_params(fault, params)
+        values = fault_params(fault, params)
         seconds = values.get("seconds")
         if fault == "disconnect":
             self._disconnect(ch, seconds)
         elif fault == "hang":
             ch.faults.hung = True
-            ch.to_host.clear()
+            self._clear_wire(ch, "hang fault", to_host_only=True)
             if seconds is not None:
                 self.after(seconds, lambda: setattr(ch.faults, "hung", False))
         elif fault == "drop":
@@ -457,24 +426,3 @@ class DeviceRunner:
         while self._actions and self._actions[0][0] <= now:
             _, action = self._actions.pop(0)
             action()
-
-
-def _fault_params(fault: str, params: dict[str, Any]) -> dict[str, float]:
-    """The fault's parameters, checked: known names only, each a finite number in its range."""
-    if fault not in FAULT_PARAMS:
-        raise ValueError(f"unknown fault {fault!r}; one of: {', '.join(FAULT_PARAMS)}")
-    allowed = FAULT_PARAMS[fault]
-    unknown = sorted(set(params) - set(allowed))
-    if unknown:
-        takes = f"takes only {', '.join(allowed)}" if allowed else "takes no parameters"
-        raise ValueError(f"{fault} {takes}; got {', '.join(unknown)}")
-    values: dict[str, float] = {}
-    for name, value in params.items():
-        low, high = PARAM_RANGES[name]
-        number = not isinstance(value, bool) and isinstance(value, int | float)
-        if not number or not math.isfinite(value) or not low <= value <= high:
-            raise ValueError(f"{name} must be a number >= {low} and <= {high}, got {value!r}")
-        if name == "count" and value != int(value):
-            raise ValueError(f"count must be a whole number, got {value:g}")
-        values[name] = value
-    return values

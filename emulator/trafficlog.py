@@ -1,4 +1,22 @@
-"""`--log-traffic FILE`: every byte in and out as JSON lines (time, device, port, direction, hex, summary).
+"""`--log-traffic FILE`: what crossed each port and what the device made of it, as JSON lines.
+
+One record per line, in device-time order (per device):
+
+    {"t": 0.012501, "wall": 1712345678.123456, "device": "stage", "port": "main", "dir": "rx",
+     "hex": "57 20 58 0d", "kind": "frame", "summary": "W X [WHERE]"}
+
+- `t`: device seconds when the unit was complete: the last byte received (`rx`), or the last byte
+  through the port's wire time (`tx`); `wall`: the host's clock when the record was written.
+- `dir`: `rx` host to device, `tx` device to host; `hex`: the bytes, space-separated.
+- `kind` (emulator/device.py): `rx` units are what the model reports it made of the bytes it read
+  (`Device.take_rx_notes`), never a re-parse: `frame` (a command it acted on), `garbled` (a character
+  as the device read it off a mismatched line; that character then also takes part in the unit the
+  device makes of it), `lost` (never acted on: deaf, busy, silenced, dropped by a reset, or by the
+  host: a hung fault, bytes discarded when the host hung up), `stray` (outside any command: junk, a
+  bad frame, a lone terminator). `tx` records are one per emission, written when its last byte
+  leaves: `reply`, `unsolicited`, `garbled` (a character as the host reads it), or `lost` (not sent
+  or not taken: detached, hung, disconnected, dropped by a fault, the host not reading).
+- `summary`: the model's one-line account, e.g. `reply to c: position X=10 Y=0 Z=0 (µsteps)`.
 
 The log is a side channel: a disk that fills up or a file that cannot be written must never stop a
 device from answering. The first failure is logged once and traffic logging stops; SIGUSR1
@@ -12,10 +30,16 @@ import json
 import logging
 import os
 import time
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
 
+from emulator.device import LOST, Emission, RxNote
+
 log = logging.getLogger("stage_emu.traffic")
+
+RX = "rx"
+TX = "tx"
 
 
 class TrafficLog:
@@ -33,7 +57,14 @@ class TrafficLog:
         self._stream = os.fdopen(fd, "a", encoding="utf-8")
 
     def record(
-        self, t: float, device: str, port: str, direction: str, data: bytes, summary: str | None
+        self,
+        t: float,
+        device: str,
+        port: str,
+        direction: str,
+        data: bytes,
+        summary: str | None,
+        kind: str | None = None,
     ) -> None:
         if self._stream is None:
             return
@@ -45,6 +76,8 @@ class TrafficLog:
             "dir": direction,
             "hex": data.hex(" "),
         }
+        if kind:
+            entry["kind"] = kind
         if summary:
             entry["summary"] = summary
         try:
@@ -79,3 +112,85 @@ class TrafficLog:
 
     def close(self) -> None:
         self._discard()
+
+
+@dataclass
+class _Sending:
+    """An emission on its way out of a port: how many of its bytes have yet to leave, how many the
+    host did not take."""
+
+    data: bytes
+    kind: str
+    summary: str | None
+    left: int
+    dropped: int = 0
+
+
+class DeviceTraffic:
+    """One device's records for the log (emulator/runner.py feeds it). Records gathered during a
+    pump are written by `flush`, sorted by device time: a pump may receive host bytes completed
+    after a reply it sends."""
+
+    def __init__(self, log: TrafficLog, device: str) -> None:
+        self._log = log
+        self._device = device
+        self._records: list[tuple[float, str, str, bytes, str, str | None]] = []
+        #: per port, the emissions queued on its wire, in order (the pacer keeps one run each)
+        self._sending: dict[str, list[_Sending]] = {}
+
+    def rx(self, note: RxNote) -> None:
+        self._records.append((note.t, note.channel, RX, note.data, note.kind, note.summary))
+
+    def lost_rx(self, t: float, port: str, data: bytes, why: str) -> None:
+        """Host bytes the runner dropped before the device could hear them."""
+        self._records.append((t, port, RX, data, LOST, why))
+
+    def lost_tx(self, t: float, emission: Emission, why: str) -> None:
+        """An emission the runner did not put on the wire."""
+        summary = why if emission.summary is None else f"{why}: {emission.summary}"
+        self._records.append((t, emission.channel, TX, emission.data, LOST, summary))
+
+    def queued(self, emission: Emission, data: bytes, changed: int) -> None:
+        """`data` (the emission after faults; `changed` bytes corrupted) is on the port's wire."""
+        if not data:
+            return  # a pacer takes no empty run
+        summary = emission.summary
+        if changed:
+            summary = f"{summary or 'bytes'} ({changed} corrupted by the corrupt fault)"
+        self._sending.setdefault(emission.channel, []).append(
+            _Sending(data, emission.kind, summary, len(data))
+        )
+
+    def left(self, t: float, port: str, count: int, dropped: int) -> None:
+        """`count` bytes of the oldest queued emission left the port at `t`, `dropped` of them not
+        taken by the host; the emission is recorded with its last byte."""
+        queue = self._sending.get(port)
+        if not queue:
+            return
+        sending = queue[0]
+        sending.left -= count
+        sending.dropped += dropped
+        if sending.left > 0:
+            return
+        queue.pop(0)
+        if sending.dropped:
+            lost = f"host not reading: {sending.dropped} of {len(sending.data)} bytes dropped"
+            summary = lost if sending.summary is None else f"{lost}: {sending.summary}"
+            self._records.append((t, port, TX, sending.data, LOST, summary))
+        else:
+            self._records.append((t, port, TX, sending.data, sending.kind, sending.summary))
+
+    def discard(self, t: float, port: str, why: str) -> None:
+        """The port's wire was cleared: what had not left is lost."""
+        for sending in self._sending.pop(port, []):
+            unsent = sending.data[len(sending.data) - sending.left :]
+            summary = why if sending.summary is None else f"{why}: {sending.summary}"
+            self._records.append((t, port, TX, unsent, LOST, summary))
+
+    def flush(self) -> None:
+        if not self._records:
+            return
+        records, self._records = self._records, []
+        records.sort(key=lambda record: record[0])
+        for t, port, direction, data, kind, summary in records:
+            self._log.record(t, self._device, port, direction, data, summary, kind)

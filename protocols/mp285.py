@@ -742,7 +742,8 @@ class FrameParser:
 # ---- traffic summaries -----------------------------------------------------------------------------
 
 
-def _describe_item(item: Item) -> str:
+def describe_item(item: Item) -> str:
+    """One line for an item of the frame parser, e.g. `m X=1200 Y=-40 Z=0 (µsteps)`."""
     if isinstance(item, Frame):
         return item.command.describe()
     if isinstance(item, CtrlC):
@@ -755,33 +756,20 @@ def _describe_item(item: Item) -> str:
     return "buffer overrun: error '2'"
 
 
-def summarize_host(data: bytes) -> str:
-    """One line for bytes a host sent, read from command position (a chunk may hold several
-    commands or part of one), e.g. `m X=1200 Y=-40 Z=0 (µsteps)`."""
-    parser = FrameParser()
-    parts = []
-    for byte in data:
-        item = parser.feed_byte(byte)
-        if item is not None:
-            parts.append(_describe_item(item))
-    if parser.state is ParseState.COLLECTING:
-        spec = COMMANDS[parser.frame_bytes[0]]
-        total = spec.frame_length
-        of = f" of {total}" if total is not None else ""
-        parts.append(f"partial '{chr(spec.byte)}' ({len(parser.frame_bytes)}{of} bytes)")
-    elif parser.state is ParseState.DISCARDING:
-        parts.append("bad bytes (discarding until CR)")
-    return "; ".join(parts) if parts else "nothing"
-
-
 def _hex(data: bytes, limit: int = 48) -> str:
     text = data[:limit].hex(" ").upper()
     return text + (" …" if len(data) > limit else "")
 
 
-def summarize_device(data: bytes) -> str:
+def summarize_device(data: bytes, to: str | None = None) -> str:
     """One line for bytes the device sent, interpreted by length and content (replies carry no
-    type), e.g. `reply: position X=… Y=… Z=…` or `error '4' bad command`."""
+    type), e.g. `reply: position X=… Y=… Z=…` or `error '4' bad command`; given the command they
+    answer, `to`, e.g. `reply to c: position X=… Y=… Z=…`."""
+    text = _describe_device(data)
+    return text if to is None else f"reply to {to}: {text.removeprefix('reply: ')}"
+
+
+def _describe_device(data: bytes) -> str:
     if data == b"\r":
         return "reply: CR (done)"
     if data == bytes((ACK_INTERRUPT,)):

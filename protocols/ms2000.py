@@ -719,20 +719,18 @@ class LLFrameDecoder:
 # ---- traffic summaries --------------------------------------------------------------------------
 
 
-def summarize(direction: str, data: bytes) -> str:
-    """One readable line for the traffic log: printable text with escapes, command names spelled out
-    for host lines (`M X=1000 [MOVE]`), hex for binary."""
+def shown(data: bytes) -> str:
+    """Bytes for the traffic log: printable text with escapes (`:A 0 0 \\r\\n`), else hex."""
     text = data.decode("latin-1")
-    printable = all(32 <= ord(ch) < 127 or ch in "\r\n\t" for ch in text)
-    if not printable:
-        return f"{direction} binary {data.hex(' ')}"
-    shown = text.replace("\r", "\\r").replace("\n", "\\n").replace("\t", "\\t")
-    if direction == "rx":
-        names = []
-        for line in text.split("\r"):
-            if line.strip():
-                spec = split_command(line).spec
-                names.append(spec.name if spec else "?")
-        if names:
-            return f"rx {shown} [{' '.join(names)}]"
-    return f"{direction} {shown}"
+    if not all(32 <= ord(ch) < 127 or ch in "\r\n\t" for ch in text):
+        return f"binary {data.hex(' ')}"
+    return text.replace("\r", "\\r").replace("\n", "\\n").replace("\t", "\\t")
+
+
+def summarize_line(line: bytes) -> str:
+    """A command line (without its CR) with its command spelled out: `M X=1000 [MOVE]`."""
+    text = line.decode("latin-1")
+    if is_blank(text):
+        return "blank line"
+    spec = split_command(text).spec
+    return f"{shown(line)} [{spec.name if spec else '?'}]"

@@ -1,119 +1,160 @@
-"""Round-trip latency through the PTY: each device command against a baseline responder, same run.
+"""Benchmark (issue "Speed"): every performance target measured in one run, printed as one table.
 
-The baseline is a PTY answered by a plain blocking loop that writes a reply of the right length
-without parsing anything: the floor set by the kernel and by pyserial on the host side. Each case
-reports median and p99 for the emulator and the baseline and their ratio (lower is better, 1.0 is the
-floor). The emulator runs with `--timing fast` so that the figures measure processing, not the
-9600-baud wire time that realistic pacing would add on purpose.
+    python scripts/bench.py [--quick] [--json FILE] [--only GROUP ...]
 
-    python scripts/bench.py [--rounds N] [--case NAME ...]
+Groups, one module each under scripts/perf/:
+  roundtrip   round trips (`--timing fast`, pyserial host) against a PTY floor that answers without
+              parsing, visits alternating: p50 ≤ 1.10 × floor, p99 ≤ 1.5 × floor
+  throughput  64 busy ports of one daemon (MS2000 `W X`, MP-285 `c`): together ≥ 0.9 × one busy port
+  idle        256 idle ports: daemon CPU 0 % (bound 1 %), RSS < 60 MB
+  timing      `--timing realistic` at 9600 baud: reply bytes within 1 ms (p99) of the wire model,
+              move completions within 1 % + 2 ms of the motion model
+  timescale   `--time-scale 100`: a 10 s MS2000 move in ≤ 110 ms, landing where it would at scale 1
+
+Ratios compare figures of the same run, so they hold across machines; absolute times do not.
+Exit status: 0 every target met, 1 a target missed (listed under the table), 2 a measurement could
+not be made (a wrong reply, a timeout, a daemon that did not start).
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import os
-import statistics
 import sys
 import tempfile
-import threading
 import time
-import tty
+import traceback
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-
-import serial
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from emulator.launcher import start_daemon  # noqa: E402
+from scripts.perf import roundtrip, throughput, timescale, timing  # noqa: E402
+from scripts.perf.common import Result, figure  # noqa: E402
 
 
 @dataclass(frozen=True)
-class Case:
-    name: str
-    profile: str
-    command: bytes
-    reply_length: int
-    baud: int = 9600
-    rtscts: bool = False
+class Plan:
+    """How much of each measurement a run does."""
+
+    visits: int
+    samples: int
+    move_samples: int
+    busy_window_s: float
+    busy_visits: int
+    idle_window_s: float
+    timing_requests: int
+    timing_moves: int
+    busy_ports: int = 64
+    idle_ports: int = 256
+    time_scale: float = 100.0
+    scaled_move_s: float = 10.0
 
 
-CASES = (
-    Case("mp285 c", "mp285", b"c\r", 13),
-    Case("ms2000 W X Y", "ms2000", b"W X Y\r", len(b":A 0 0\r\n")),
+FULL = Plan(
+    visits=15,
+    samples=400,
+    move_samples=60,
+    busy_window_s=2.0,
+    busy_visits=3,
+    idle_window_s=10.0,
+    timing_requests=1000,
+    timing_moves=3,
+)
+QUICK = Plan(
+    visits=5,
+    samples=100,
+    move_samples=20,
+    busy_window_s=0.4,
+    busy_visits=1,
+    idle_window_s=2.0,
+    timing_requests=200,
+    timing_moves=1,
 )
 
-
-def baseline_port(command_length: int, reply: bytes) -> tuple[str, threading.Thread]:
-    """A PTY whose other end answers every `command_length` bytes with `reply`, unparsed."""
-    master, slave = os.openpty()
-    tty.setraw(slave)
-    path = os.ttyname(slave)
-    os.close(slave)
-
-    def answer() -> None:
-        pending = 0
-        while True:
-            try:
-                data = os.read(master, 4096)
-            except OSError:
-                return
-            pending += len(data)
-            while pending >= command_length:
-                pending -= command_length
-                os.write(master, reply)
-
-    thread = threading.Thread(target=answer, daemon=True)
-    thread.start()
-    return path, thread
+GROUPS: dict[str, Callable[[Path, Plan], list[Result]]] = {
+    "roundtrip": lambda work, plan: roundtrip.run(work, plan.visits, plan.samples, plan.move_samples),
+    "throughput": lambda work, plan: [
+        throughput.busy(work / family, family, plan.busy_ports, plan.busy_window_s, plan.busy_visits)
+        for family in ("ms2000", "mp285")
+    ],
+    "idle": lambda work, plan: throughput.idle(work, plan.idle_ports, plan.idle_window_s),
+    "timing": lambda work, plan: timing.run(work, plan.timing_requests, plan.timing_moves),
+    "timescale": lambda work, plan: [timescale.run(work, plan.time_scale, plan.scaled_move_s)],
+}
 
 
-def round_trips(path: str, case: Case, rounds: int) -> list[float]:
-    with serial.Serial(path, case.baud, timeout=2, rtscts=case.rtscts) as port:
-        for _ in range(20):  # warm-up
-            port.write(case.command)
-            port.read(case.reply_length)
-        times = []
-        for _ in range(rounds):
-            start = time.perf_counter()
-            port.write(case.command)
-            reply = port.read(case.reply_length)
-            times.append(time.perf_counter() - start)
-            if len(reply) != case.reply_length:
-                raise RuntimeError(f"{case.name}: short reply {reply!r}")
-    return times
-
-
-def summary(times: list[float]) -> tuple[float, float]:
-    ordered = sorted(times)
-    return statistics.median(ordered), ordered[min(len(ordered) - 1, int(len(ordered) * 0.99))]
+def table(results: list[Result]) -> str:
+    """A Markdown table, padded to be read in a terminal too."""
+    rows = [("case", "unit", "emulator p50/p99", "floor/ref p50/p99", "figure", "target", "result")]
+    for result in results:
+        rows.append(
+            (
+                result.case,
+                result.unit,
+                "/".join(figure(value) for value in result.emulator),
+                "/".join(figure(value) for value in result.reference) or "—",
+                ", ".join(f"{check.name} {figure(check.value)}" for check in result.checks),
+                ", ".join(f"{check.op} {figure(check.bound)}" for check in result.checks),
+                "pass" if result.passed else "FAIL",
+            )
+        )
+    widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]
+    lines = [
+        "| " + " | ".join(cell.ljust(width) for cell, width in zip(row, widths, strict=True)) + " |"
+        for row in rows
+    ]
+    lines.insert(1, "| " + " | ".join("-" * width for width in widths) + " |")
+    return "\n".join(lines)
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--rounds", type=int, default=2000)
-    parser.add_argument("--case", action="append", choices=[c.name for c in CASES])
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=__doc__.split("\n\n", 2)[2],
+    )
+    parser.add_argument("--quick", action="store_true", help="about 10 s: fewer round trips, shorter windows")
+    parser.add_argument("--json", type=Path, metavar="FILE", help="also write the results here")
+    parser.add_argument(
+        "--only", nargs="+", choices=list(GROUPS), metavar="GROUP", help="run only these groups"
+    )
     args = parser.parse_args()
-    cases = [c for c in CASES if not args.case or c.name in args.case]
-    print(f"{'case':<16}{'emulator med/p99 (µs)':>24}{'baseline med/p99 (µs)':>24}{'ratio med/p99':>16}")
+    plan = QUICK if args.quick else FULL
+    started = time.monotonic()
+    results: list[Result] = []
     with tempfile.TemporaryDirectory(prefix="stage-emu-bench-") as tmp:
-        for case in cases:
-            daemon = start_daemon(
-                Path(tmp) / case.profile, ["--profile", case.profile, "--timing", "fast"], 1
-            )
+        for name, measure in GROUPS.items():
+            if args.only and name not in args.only:
+                continue
+            print(f"bench: {name}...", file=sys.stderr, flush=True)
             try:
-                emulated = summary(round_trips(daemon.ports[0]["path"], case, args.rounds))
-            finally:
-                daemon.stop()
-            path, _ = baseline_port(len(case.command), b"\0" * case.reply_length)
-            floor = summary(round_trips(path, case, args.rounds))
-            print(
-                f"{case.name:<16}{emulated[0] * 1e6:>12.0f}/{emulated[1] * 1e6:<11.0f}"
-                f"{floor[0] * 1e6:>12.0f}/{floor[1] * 1e6:<11.0f}"
-                f"{emulated[0] / floor[0]:>8.2f}/{emulated[1] / floor[1]:.2f}"
-            )
+                results += measure(Path(tmp) / name, plan)
+            except Exception:  # a measurement that cannot be made is not a missed target: exit 2
+                traceback.print_exc()
+                print(f"bench: {name}: measurement failed (above); no table", file=sys.stderr)
+                return 2
+    print(table(results))
+    failures = [failure for result in results for failure in result.failures()]
+    print(
+        f"\n{'quick' if args.quick else 'full'} run, {time.monotonic() - started:.0f} s, "
+        f"{os.cpu_count()} CPUs, load average {' '.join(f'{x:.1f}' for x in os.getloadavg())}"
+    )
+    if args.json:
+        report = {
+            "quick": args.quick,
+            "cpus": os.cpu_count(),
+            "load_average": os.getloadavg(),
+            "results": [result.as_json() for result in results],
+            "missed": failures,
+        }
+        args.json.write_text(json.dumps(report, indent=1, ensure_ascii=False) + "\n")
+    if failures:
+        print("missed targets:\n  " + "\n  ".join(failures))
+        return 1
     return 0
 
 

@@ -5,64 +5,86 @@ Line commands, CR-terminated:
 - `B <n>`         send n bytes `x` at once (pacing tests)
 - `D <ms> <text>` send `<text>` CR after ms milliseconds (timers, next_deadline)
 Anything else: `?` CR. Control: input `say {text}` sends text unsolicited; event `line` per command.
+While explaining, each line is noted as a frame and each reply names its line.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any
 
 from emulator import registry
-from emulator.device import MAIN, ControlError, Device, Emission, HostServices, LineSettings
-from emulator.profile import Profile, line_struct
-from emulator.schema import Bool, Field, Struct
-
-SCHEMA = Struct(
-    "Probe",
-    (
-        Field("line", line_struct((1200, 2400, 4800, 9600, 19200, 115200), 9600, "T-1")),
-        Field("knobs", Struct("ProbeKnobs", (Field("pace_line", Bool(), True, "T-2", "pace output"),))),
-    ),
+from emulator.device import (
+    FRAME,
+    MAIN,
+    UNSOLICITED,
+    ControlError,
+    Device,
+    Emission,
+    HostServices,
+    LineSettings,
 )
+from emulator.profile import Config, Line, Profile, line_section
+from emulator.schema import Bool, Schema, Section, setting
+
+LINE = line_section("ProbeLine", (1200, 2400, 4800, 9600, 19200, 115200), 9600, "T-1")
+
+
+@dataclass(frozen=True)
+class ProbeKnobs(Schema):
+    pace_line: bool = setting(Bool(), True, "T-2", "pace output")
+
+
+@dataclass(frozen=True)
+class ProbeConfig(Config):
+    line: Line = setting(Section(LINE))
+    knobs: ProbeKnobs = setting(Section(ProbeKnobs))
 
 
 class ProbeDevice(Device):
-    def __init__(self, name: str, profile: Profile, now: float, services: HostServices) -> None:
+    def __init__(self, name: str, profile: Profile[ProbeConfig], now: float, services: HostServices) -> None:
         super().__init__(name, profile, now, services)
         self.pace_line = profile.config.knobs.pace_line
         self._buffer = bytearray()
-        self._timers: list[tuple[float, bytes]] = []
+        self._timers: list[tuple[float, bytes, str]] = []
         self.host: LineSettings | None = None
         self.received: list[tuple[float, bytes]] = []
         self.lines = 0
 
-    def receive(self, data: bytes, now: float, channel: str = MAIN) -> None:
+    def _receive(self, data: bytes, now: float, channel: str) -> None:
         self.received.append((now, data))
         for byte in data:
             if byte == 0x0D:
-                self._command(bytes(self._buffer).decode("latin-1"), now)
+                line = bytes(self._buffer).decode("latin-1")
+                if self.notes.on:
+                    self.notes.rx(now, FRAME, bytes(self._buffer) + b"\r", f"line {line!r}")
+                self._command(line, now)
                 self._buffer.clear()
             else:
                 self._buffer.append(byte)
+
+    def _reply(self, t: float, data: bytes, line: str) -> None:
+        self._outbox.append(Emission(t, data, summary=f"reply to {line!r}" if self.notes.on else None))
 
     def _command(self, line: str, now: float) -> None:
         self.lines += 1
         self._events.append({"ev": "line", "text": line})
         word, _, rest = line.partition(" ")
         if word == "E":
-            self._outbox.append(Emission(now, rest.encode("latin-1") + b"\r"))
+            self._reply(now, rest.encode("latin-1") + b"\r", line)
         elif word == "B" and rest.isdigit():
-            self._outbox.append(Emission(now, b"x" * int(rest)))
+            self._reply(now, b"x" * int(rest), line)
         elif word == "D" and rest.partition(" ")[0].isdigit():
             ms, _, text = rest.partition(" ")
-            self._timers.append((now + int(ms) / 1000, text.encode("latin-1") + b"\r"))
+            self._timers.append((now + int(ms) / 1000, text.encode("latin-1") + b"\r", line))
             self._timers.sort()
         else:
-            self._outbox.append(Emission(now, b"?\r"))
+            self._reply(now, b"?\r", line)
 
-    def advance(self, now: float) -> None:
+    def _advance(self, now: float) -> None:
         while self._timers and self._timers[0][0] <= now:
-            due, data = self._timers.pop(0)
-            self._outbox.append(Emission(due, data))
+            due, data, line = self._timers.pop(0)
+            self._reply(due, data, line)
 
     def next_deadline(self) -> float | None:
         return self._timers[0][0] if self._timers else None
@@ -77,7 +99,7 @@ class ProbeDevice(Device):
     def mismatch_effect(self, host: LineSettings, channel: str = MAIN) -> str:
         return "the probe ignores it"
 
-    def snapshot(self) -> dict[str, Any]:
+    def snapshot(self, now: float) -> dict[str, Any]:
         return {"lines": self.lines, "host": None if self.host is None else self.host.describe()}
 
     def control_input(self, name: str, params: dict[str, Any], now: float) -> Any:
@@ -86,14 +108,11 @@ class ProbeDevice(Device):
         text = params.get("text")
         if not isinstance(text, str):
             raise ControlError("say needs text (a string)")
-        self._outbox.append(Emission(now, text.encode("latin-1")))
+        self._outbox.append(Emission(now, text.encode("latin-1"), kind=UNSOLICITED, summary="say"))
         return True
 
     def control_names(self) -> dict[str, list[str]]:
-        return {"inputs": ["say"], "observables": sorted(self.snapshot())}
-
-    def summarize(self, direction: str, data: bytes) -> str | None:
-        return f"{direction} {data!r}"
+        return {"inputs": ["say"], "observables": sorted(self.snapshot(self.now))}
 
 
-registry.register(registry.Family("probe", "test-only line device", SCHEMA, ProbeDevice))
+registry.register(registry.Family("probe", "test-only line device", ProbeConfig, ProbeDevice))

@@ -208,8 +208,12 @@ def test_traffic_log_records_both_directions(tmp_path: Path) -> None:
     port.send(b"E ok\r")
     traffic.close()
     entries = [json.loads(line) for line in path.read_text().splitlines()]
-    assert [(e["dir"], e["hex"]) for e in entries] == [("rx", "45 20 6f 6b 0d"), ("tx", "6f 6b 0d")]
-    assert entries[0]["device"] == "probe-0" and entries[0]["summary"] == "rx b'E ok\\r'"
+    assert [(e["dir"], e["hex"], e["kind"]) for e in entries] == [
+        ("rx", "45 20 6f 6b 0d", "frame"),
+        ("tx", "6f 6b 0d", "reply"),
+    ]
+    assert entries[0]["device"] == "probe-0" and entries[0]["summary"] == "line 'E ok'"
+    assert entries[1]["summary"] == "reply to 'E ok'"
 
 
 # ---- bounds between host and device --------------------------------------------------------------

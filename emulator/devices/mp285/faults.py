@@ -8,7 +8,7 @@ from __future__ import annotations
 from typing import Any
 
 from emulator.device import ControlError
-from emulator.devices.mp285.schema import SIGNATURE_BYTES
+from emulator.devices.mp285.schema import SIGNATURE_BYTES, Mp285Knobs
 from protocols import mp285 as proto
 from protocols.mp285 import CR, CTRL_C
 
@@ -19,7 +19,7 @@ SIGNATURE_LENGTH = 16  # MP-77
 class Crash:
     """The signature of the current (or last) crash and the recovery the profile allows."""
 
-    def __init__(self, knobs: Any) -> None:
+    def __init__(self, knobs: Mp285Knobs) -> None:
         self.profile_signature = SIGNATURE_BYTES[knobs.crash_signature]
         self.signature = self.profile_signature
         self._recovery: str = knobs.crash_recovery
@@ -55,7 +55,7 @@ def crash_signature(params: dict[str, Any], default: str) -> bytes:
 class Roe:
     """The rotary encoder (MP-79): when it was last turned, and whether a byte now crashes the unit."""
 
-    def __init__(self, knobs: Any) -> None:
+    def __init__(self, knobs: Mp285Knobs) -> None:
         self._crashes: bool = knobs.roe_crash
         low, high = knobs.roe_crash_window_s
         self._low: float = low

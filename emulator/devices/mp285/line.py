@@ -6,8 +6,10 @@ when, and what leaves its transmitter.
   it clears `pace_line` and the host delivers and forwards bytes unpaced;
 - a USB host without RTS/CTS meets a one-character receive register (MP-7): while the controller is
   busy it keeps one byte and flags an overrun on the next;
-- replies are stamped with the instant they are handed to the transmitter and remembered for the
-  traffic log's summaries.
+- replies are stamped with the instant they are handed to the transmitter.
+
+While explaining, the port notes each garbled character as the device read it, and summarises each
+character the host reads off a garbled line, naming the character it was sent as (`Sources`).
 """
 
 from __future__ import annotations
@@ -19,11 +21,10 @@ from collections.abc import Callable
 from fractions import Fraction
 from typing import Any
 
-from emulator.device import ControlError, Emission, HostLine, LineSettings
-from emulator.devices.mp285.schema import BAUDS
+from emulator.device import GARBLED, REPLY, UNSOLICITED, ControlError, Emission, HostLine, LineSettings, Notes
+from emulator.devices.mp285.schema import BAUDS, Mp285Controller, Mp285Knobs
 from emulator.line import char_time, mismatches
-from emulator.uart import Framing, Wire
-from protocols import mp285 as proto
+from emulator.uart import HALF, Char, Framing, Wire
 
 #: `on_char(byte, framing_error, t)`: one character received at `t` (framing_error: not a data byte)
 OnChar = Callable[[int, bool, float], None]
@@ -31,8 +32,6 @@ OnChar = Callable[[int, bool, float], None]
 FRAMING_SETTINGS = ("baud", "data_bits", "parity", "stop_bits")
 #: a host byte completing within this of the end of a transmission counts as after it (float clocks)
 TIME_TOLERANCE = 1e-9
-#: replies remembered for traffic-log summaries (bounded: nothing drains them without a traffic log)
-TX_LOG_LENGTH = 64
 #: what the front-panel menu sets on the RS-232 port (MP-1)
 MENU: dict[str, tuple[Any, ...]] = {
     "baud": BAUDS,
@@ -61,18 +60,50 @@ def menu_settings(current: LineSettings, params: dict[str, Any]) -> LineSettings
     return dataclasses.replace(current, **changes)
 
 
+class Sources:
+    """The characters sent on a garbled wire, to name the one a received character came from (its
+    start edge falls within it). Kept only while explaining: each entry is (start, end, byte, the
+    summary of the send it opens or None)."""
+
+    def __init__(self) -> None:
+        self._sent: deque[tuple[Fraction, Fraction, int, str | None]] = deque()
+
+    def add(self, start: Fraction, end: Fraction, byte: int, summary: str | None) -> None:
+        self._sent.append((start, end, byte, summary))
+
+    def of(self, char: Char, receiver: Framing) -> tuple[int, str | None] | None:
+        """The sent byte `char` started in (its start bit's falling edge lies within it), with the
+        summary of its send; None when it was not recorded (sent before explaining began)."""
+        bit = receiver.bit_time
+        edge = char.time - (1 + receiver.data_bits + receiver.parity_bits) * bit - bit * HALF
+        while self._sent and self._sent[0][1] <= edge:
+            self._sent.popleft()
+        if self._sent and self._sent[0][0] <= edge:
+            return self._sent[0][2], self._sent[0][3]
+        return None
+
+    def clear(self) -> None:
+        self._sent.clear()
+
+
 class Line:
     """One controller's port: its settings, the host's, the wires of a mismatched line, the
     transmitter and the MP-7 receive register."""
 
     def __init__(
-        self, settings: LineSettings, controller: Any, knobs: Any, emit: Callable[[Emission], None]
+        self,
+        settings: LineSettings,
+        controller: Mp285Controller,
+        knobs: Mp285Knobs,
+        emit: Callable[[Emission], None],
+        notes: Notes,
     ) -> None:
         self.usb: bool = controller.interface == "usb_vcp"
         self._require_rtscts: bool = controller.require_rtscts
         self._pace: bool = knobs.pace_line
         self._garble = knobs.line_mismatch == "garble"
         self._emit = emit
+        self._notes = notes
         self.settings = settings
         self._char_time = 0.0
         self.host: HostLine | None = None
@@ -83,8 +114,9 @@ class Line:
         self.garbled = False
         self._rx_wire: Wire | None = None
         self._tx_wire: Wire | None = None
-        self._rx_queue: deque[tuple[float, int, bool]] = deque()
-        self._tx_log: deque[list[Any]] = deque(maxlen=TX_LOG_LENGTH)  # [bytes not yet logged, summary]
+        self._rx_queue: deque[tuple[float, int, bool, str | None]] = deque()
+        self._rx_sources = Sources()
+        self._tx_sources = Sources()
         self._tx_free = -math.inf
         #: when the last reply has been transmitted: the end of an MP-7 busy period
         self.reply_tx_end = -math.inf
@@ -116,6 +148,8 @@ class Line:
         """Garble both directions when the host frames characters differently (MP-6)."""
         self._rx_wire = self._tx_wire = None
         self._rx_queue.clear()
+        self._rx_sources.clear()
+        self._tx_sources.clear()
         self.garbled = False
         self.pace_line = self._pace
         host = self.host
@@ -166,8 +200,11 @@ class Line:
         wire = self._rx_wire
         assert wire is not None
         start = Fraction(now)
+        explain = self._notes.on
         for byte in data:
-            wire.send(byte, start)
+            begins = wire.send(byte, start)
+            if explain:
+                self._rx_sources.add(begins, begins + wire.sender.char_time, byte, None)
         self.pump_rx(now, on_char)
 
     def pump_rx(self, t: float, on_char: OnChar) -> None:
@@ -175,10 +212,34 @@ class Line:
         wire = self._rx_wire
         if wire is not None:
             for char in wire.take(max(wire.line_free, Fraction(t))):
-                self._rx_queue.append((max(float(char.time), t), char.value, char.framing_error))
+                note = self._garbled_note(char, self._rx_sources, wire.receiver, "host")
+                self._rx_queue.append((max(float(char.time), t), char.value, char.framing_error, note))
         while self._rx_queue and self._rx_queue[0][0] <= t:
-            when, value, framing_error = self._rx_queue.popleft()
+            when, value, framing_error, note = self._rx_queue.popleft()
+            if note is not None:
+                self._notes.rx(when, GARBLED, bytes((value,)), note)
             on_char(value, framing_error, when)
+
+    def _garbled_note(self, char: Char, sources: Sources, receiver: Framing, sender: str) -> str | None:
+        """While explaining: how one end read a character the other end (`sender`) sent (MP-6).
+        None for a host's character the device read as sent: only the unit it joins is noted."""
+        if not self._notes.on:
+            return None
+        source = sources.of(char, receiver)
+        intact = source is not None and source[0] == char.value and not char.framing_error
+        if intact and sender == "host":
+            return None
+        assert self.host is not None
+        reader = "host" if sender == "device" else "device"
+        lines = {"host": self.host.filled(self.settings).describe(), "device": self.settings.describe()}
+        read = f"{char.value:02X}"
+        if char.framing_error:
+            read += " with a framing error" + (" (delivered as 00)" if reader == "host" else "")
+        origin = "an unrecorded character" if source is None else f"the {sender}'s {source[0]:02X}"
+        text = f"garbled: the {reader} at {lines[reader]} read {read} from {origin} sent at {lines[sender]}"
+        if source is not None and source[1] is not None:
+            text += f"; the first byte of {source[1]}"
+        return text
 
     def rx_due(self) -> float | None:
         """When garbled input next needs decoding or processing."""
@@ -207,29 +268,40 @@ class Line:
 
     def end_busy(self) -> tuple[tuple[int, bool] | None, bool]:
         """Empty the register: the byte it kept (or None) and whether it overran."""
-        kept, overrun = self._kept, self._overrun
-        self.clear_register()
-        return kept, overrun
+        overrun = self._overrun
+        return self.clear_register(), overrun
 
-    def clear_register(self) -> None:
+    @property
+    def overrun(self) -> bool:
+        """The register has overrun in this busy period: every further byte is lost (MP-7)."""
+        return self._overrun
+
+    def clear_register(self) -> tuple[int, bool] | None:
+        """Empty the register; returns the byte it kept, if any."""
+        kept = self._kept
         self.register_used = False
         self._kept = None
         self._overrun = False
+        return kept
 
     # ---- transmitting --------------------------------------------------------------------------
 
-    def send(self, t: float, data: bytes, reply: bool = True) -> None:
-        """Hand bytes to the transmitter at `t`. `reply`: ends an MP-7 busy period once sent."""
+    def send(self, t: float, data: bytes, reply: bool, summary: str | None, unsolicited: bool) -> None:
+        """Hand bytes to the transmitter at `t`. `reply`: ends an MP-7 busy period once sent.
+        `summary` (while explaining) and `unsolicited` describe them for the traffic log."""
         wire = self._tx_wire
         if wire is not None:
             start = Fraction(t)
+            explain = self._notes.on
             for byte in data:
-                wire.send(byte, start)
+                begins = wire.send(byte, start)
+                if explain:
+                    self._tx_sources.add(begins, begins + wire.sender.char_time, byte, summary)
+                    summary = None  # named once, with the first character
             self._tx_free = float(wire.line_free)
             self.flush_tx(t)
         else:
-            self._emit(Emission(t, data))
-            self._tx_log.append([data, proto.summarize_device(data)])
+            self._emit(Emission(t, data, kind=UNSOLICITED if unsolicited else REPLY, summary=summary))
             paced = max(t, self._tx_free) + len(data) * self._char_time
             self._tx_free = paced if self._pace else t
         if reply:
@@ -246,26 +318,10 @@ class Line:
             return
         for char in wire.take(max(wire.line_free, Fraction(t))):
             value = 0 if char.framing_error else char.value
-            self._emit(Emission(float(char.time), bytes((value,))))
+            note = self._garbled_note(char, self._tx_sources, wire.receiver, "device")
+            self._emit(Emission(float(char.time), bytes((value,)), kind=GARBLED, summary=note))
 
     def tx_due(self) -> float | None:
         """When the host's view of garbled output next becomes final."""
         wire = self._tx_wire
         return None if wire is None or wire.needed is None else after(wire.needed)
-
-    def summarize_tx(self, data: bytes) -> str | None:
-        """Device bytes, paced out one at a time, are matched to the replies that were sent: a reply
-        is summarised with its last byte."""
-        parts, rest = [], data
-        while rest and self._tx_log:
-            entry = self._tx_log[0]
-            count = min(len(rest), len(entry[0]))
-            if rest[:count] != entry[0][:count]:  # a port fault dropped or changed bytes
-                self._tx_log.clear()
-                break
-            rest, entry[0] = rest[count:], entry[0][count:]
-            if not entry[0]:
-                parts.append(self._tx_log.popleft()[1])
-        if rest:
-            return proto.summarize_device(data)
-        return "; ".join(parts) or None

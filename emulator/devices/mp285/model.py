@@ -17,6 +17,10 @@ which alone enters and leaves states: moves and programs, reset (§8), power cyc
 Every output is stamped with the instant its event was due. Internal events (`Event`: end of a move,
 end of a busy period, power-on, lock-up, garbled characters becoming complete) are found by
 `_next_event` and run in time order by `advance`.
+
+While explaining (a traffic log is kept) the receiver notes each unit of input it parses, this module
+what is lost or stray outside it, and `send` summarises each output as a reply to `_cause`: the item
+being executed, or for a final reply the command that started the run.
 """
 
 from __future__ import annotations
@@ -32,7 +36,7 @@ from emulator.devices.mp285.faults import Crash, Roe, crash_signature, roe_turn
 from emulator.devices.mp285.line import Line
 from emulator.devices.mp285.motion import Halt, Program, Run, Stage, Xyz
 from emulator.devices.mp285.receiver import Receiver
-from emulator.devices.mp285.schema import speed_limits
+from emulator.devices.mp285.schema import Mp285Config, speed_limits
 from emulator.devices.mp285.states import FRAME_STATES, LISTENING, ROE_REFUSED, State
 from emulator.devices.mp285.status import Display, Status
 from emulator.profile import Profile
@@ -47,6 +51,12 @@ INTERRUPTED_REPLIES = {
 }
 #: control-channel inputs (`ctl input`), see docs/mp285.md
 INPUTS = ("crash", "power_cycle", "roe", "set_line")
+#: why a byte is lost in a state that does not listen (traffic log)
+DEAF_REASONS = {
+    State.DEAF: "deaf after reset (MP-56)",
+    State.POWERING_ON: "powering on (MP-76)",
+    State.LOCKED: "locked up (MP-80)",
+}
 
 
 class Event(enum.IntEnum):
@@ -64,7 +74,7 @@ class Mp285Device(Device):
     """One MP-285 or MP-285A controller with its stage. It holds its `State` in `_state` and makes
     every transition (states.py lists them); `_run` is set exactly while MOVING."""
 
-    def __init__(self, name: str, profile: Profile, now: float, services: HostServices) -> None:
+    def __init__(self, name: str, profile: Profile[Mp285Config], now: float, services: HostServices) -> None:
         super().__init__(name, profile, now, services)
         config = profile.config
         self.controller = config.controller
@@ -74,7 +84,7 @@ class Mp285Device(Device):
         settings = LineSettings(
             line.baud, line.data_bits, line.parity, line.stop_bits, line.flow_control == "rtscts", False
         )
-        self._line = Line(settings, self.controller, self.knobs, self._emit)
+        self._line = Line(settings, self.controller, self.knobs, self._emit, self.notes)
         self.pace_line = self._line.pace_line
         self.stage = Stage(config.stage, self.knobs)
         self.status = Status(self.controller, config.stage, self.knobs)
@@ -82,8 +92,9 @@ class Mp285Device(Device):
         self.programs: dict[int, tuple[Vector, ...]] = {}
         self.relative = False
         self.velocity = Velocity.from_word(self.controller.power_on_velocity_word)
-        self._now = now
-        self._receiver = Receiver(self.knobs, self._run_item, self.send, self._current_run)
+        self._receiver = Receiver(
+            self.knobs, self.notes, self._run_item, self._ack_interrupt, self._current_run
+        )
         self._crash = Crash(self.knobs)
         self._roe = Roe(self.knobs)
         self._state = State.IDLE
@@ -93,12 +104,14 @@ class Mp285Device(Device):
         self._powering_until = -math.inf
         #: a crash injected while POWERING_ON (CRASHED once powered) or LOCKED (shown, nothing else)
         self._crash_latched = False
-        self._enter_power_on_state()  # MP-76: at daemon start, at once
+        #: what replies answer now, and what the run's final reply will answer (while explaining)
+        self._cause: str | None = None
+        self._run_cause: str | None = None
+        self._enter_power_on_state(now)  # MP-76: at daemon start, at once
 
     # ---- Device contract ------------------------------------------------------------------------
 
-    def receive(self, data: bytes, now: float, channel: str = MAIN) -> None:
-        self._now = max(self._now, now)
+    def _receive(self, data: bytes, now: float, channel: str) -> None:
         on_char = self._on_char
         if self._line.garbled:
             self._line.receive_garbled(data, now, on_char)
@@ -106,14 +119,13 @@ class Mp285Device(Device):
         for byte in data:
             on_char(byte, False, now)
 
-    def advance(self, now: float) -> None:
+    def _advance(self, now: float) -> None:
         while True:
             event = self._next_event()
             if event is None or event[0] > now:
                 break
             self._handle(*event)
         self._line.flush_tx(now)
-        self._now = max(self._now, now)
 
     def next_deadline(self) -> float | None:
         event = self._next_event()
@@ -129,8 +141,8 @@ class Mp285Device(Device):
     def mismatch_effect(self, host: HostLine, channel: str = MAIN) -> str:
         return self._line.mismatch_effect(host)
 
-    def snapshot(self) -> dict[str, Any]:
-        t = self._now
+    def snapshot(self, now: float) -> dict[str, Any]:
+        t = now
         velocity = self.velocity
         return {
             "model": self.controller.model,
@@ -156,17 +168,12 @@ class Mp285Device(Device):
             "line": self._line.snapshot(),
         }
 
-    def observe(self, name: str, now: float) -> Any:
-        self._now = max(self._now, now)
-        return super().observe(name, now)
-
     def control_input(self, name: str, params: dict[str, Any], now: float) -> Any:
-        self._now = max(self._now, now)
         if name == "power_cycle":
             self._power_cycle(now)
             return {"powered_at": self._powering_until}
         if name == "crash":
-            self._enter_crashed(now, crash_signature(params, self.knobs.crash_signature))
+            self._enter_crashed(now, crash_signature(params, self.knobs.crash_signature), "control input")
             return True
         if name == "roe":
             return self._turn_roe(params, now)
@@ -179,13 +186,7 @@ class Mp285Device(Device):
         raise ControlError(f"{self.name}: no input {name!r}; known: {', '.join(INPUTS)}")
 
     def control_names(self) -> dict[str, list[str]]:
-        return {"inputs": list(INPUTS), "observables": sorted(self.snapshot())}
-
-    def summarize(self, direction: str, data: bytes) -> str | None:
-        """Host bytes are read from command position; device bytes are matched to the replies sent."""
-        if direction == "rx":
-            return proto.summarize_host(data)
-        return self._line.summarize_tx(data)
+        return {"inputs": list(INPUTS), "observables": sorted(self.snapshot(self.now))}
 
     # ---- state -----------------------------------------------------------------------------------
 
@@ -255,9 +256,16 @@ class Mp285Device(Device):
     def _emit(self, emission: Emission) -> None:
         self._outbox.append(emission)
 
-    def send(self, t: float, data: bytes, reply: bool = True) -> None:
-        """Hand bytes to the transmitter at `t`. `reply`: ends an MP-7 busy period once sent."""
-        self._line.send(t, data, reply)
+    def send(self, t: float, data: bytes, reply: bool = True, unsolicited: str | None = None) -> None:
+        """Hand bytes to the transmitter at `t`. `reply`: ends an MP-7 busy period once sent.
+        `unsolicited`: why the device sends them on its own (else they answer `_cause`)."""
+        summary = None
+        if self.notes.on:
+            if unsolicited is None:
+                summary = proto.summarize_device(data, self._cause)
+            else:
+                summary = f"{unsolicited}: {proto.summarize_device(data)}"
+        self._line.send(t, data, reply, summary, unsolicited is not None)
 
     def error(self, t: float, code: int) -> None:
         self.send(t, proto.error_reply(code))
@@ -282,28 +290,40 @@ class Mp285Device(Device):
                 self._crashed_input(byte, framing_error, t)
                 return
             if state is not State.DEAF or t < self._deaf_until:
+                if self.notes.on:
+                    self._receiver.lost(t, byte, DEAF_REASONS[state])
                 return  # MP-56 (DEAF), MP-76 (POWERING_ON), MP-80 (LOCKED)
             self._state = State.IDLE  # the DEAF period is over
         if self._roe.last is not None and self._roe.crash_due(t):  # MP-79
-            self._enter_crashed(t, self._crash.profile_signature)
+            self._enter_crashed(t, self._crash.profile_signature, "a byte in the ROE crash window")
             self._crashed_input(byte, framing_error, t)
             return
         line = self._line
         if line.flow_starved and not line.admit(byte, framing_error, t, self._run is not None):
+            if self.notes.on and line.overrun:
+                self._receiver.lost(t, byte, "overrun: busy, receive register full (MP-7)")
             return  # MP-7
         self._receiver.dispatch(byte, framing_error, t, self._run)
 
     def _on_busy_end(self, t: float) -> None:
         kept, overrun = self._line.end_busy()
         if overrun:
-            self.send(t, proto.error_reply(ErrorCode.SP_OVERRUN), reply=False)  # MP-7
+            self.send(t, proto.error_reply(ErrorCode.SP_OVERRUN), False, "receive register overrun")  # MP-7
             self.display.show_error(ErrorCode.SP_OVERRUN)
-            self._receiver.forget_frame()
+            self._receiver.forget_frame(t, b"" if kept is None else bytes((kept[0],)))
         elif kept is not None:
             self._receiver.dispatch(kept[0], kept[1], t, self._run)
 
     def _run_item(self, item: Item, t: float) -> None:
+        if self.notes.on:
+            self._cause = proto.describe_item(item)
         run_item(self, item, t)
+
+    def _ack_interrupt(self, t: float) -> None:
+        """MP-48: ^C during a move is acknowledged at once."""
+        if self.notes.on:
+            self._cause = "^C during a move"
+        self.send(t, bytes((proto.ACK_INTERRUPT,)), reply=False)
 
     def _current_run(self) -> Run | None:
         return self._run
@@ -313,12 +333,14 @@ class Mp285Device(Device):
     def start_run(self, t: float, target: Xyz, program: Program | None) -> None:
         """MOVING towards `target` (MP-43 ... MP-47), for `m` or a program's move vector."""
         self._run = self.stage.start(t, target, self.velocity.speed, program)
+        self._run_cause = self._cause
         self._state = State.MOVING
         self._events.append({"ev": "move_started", "target_usteps": self.stage.reported(target)})
 
     def _on_final(self, t: float) -> None:
         run = self._run
         assert run is not None
+        self._cause = self._run_cause
         self.stage.physical = run.position(t)
         halted = None if run.cause is None else run.cause.value
         self._events.append({"ev": "move_ended", "position_usteps": self.reported(t), "halted": halted})
@@ -367,55 +389,56 @@ class Mp285Device(Device):
 
     # ---- reset, power, faults --------------------------------------------------------------------
 
-    def _enter_power_on_state(self) -> None:
+    def _enter_power_on_state(self, t: float) -> None:
         """MP-76: the profile's status (ROE direction included) and what a reset restores."""
         self.status.power_on()
-        self._restore_defaults()
+        self._restore_defaults(t, "power-on (MP-76)")
 
-    def _restore_defaults(self) -> None:
+    def _restore_defaults(self, t: float, why: str) -> None:
         """MP-57: absolute mode, power-on V word, no pending input, no paused program, display
         refreshed."""
         self.relative = False
         self.velocity = Velocity.from_word(self.controller.power_on_velocity_word)
-        self._drop_input()
+        self._drop_input(t, why)
         self._paused = None
         self.refresh_display()
 
-    def _drop_input(self) -> None:
-        """Partial frames, held input and the MP-7 register. Characters still on a garbled line are
-        not received yet: they arrive in their time, like bytes on a clean line."""
-        self._receiver.drop()
-        self._line.clear_register()
+    def _drop_input(self, t: float, why: str) -> None:
+        """Partial frames, held input and the MP-7 register (`why`: for the traffic log).
+        Characters still on a garbled line are not received yet: they arrive in their time, like
+        bytes on a clean line."""
+        kept = self._line.clear_register()
+        self._receiver.drop(t, why, b"" if kept is None else bytes((kept[0],)))
 
     def soft_reset(self, t: float, deaf: bool) -> None:
         """MP-57: defaults restored; positions, origin, programs (MP-73) and status fields kept.
         Then DEAF for `reset_deaf_s` (MP-56), or for what is left of an earlier DEAF period."""
-        self._restore_defaults()
+        self._restore_defaults(t, "reset (MP-57)")
         if self.knobs.program_retention == "reset":  # MP-73
             self.programs.clear()
         self._events.append({"ev": "reset"})
         if deaf:
             self._deaf_until = t + self.knobs.reset_deaf_s  # MP-56
             if self.knobs.reset_emits_nul:  # MP-58
-                self.send(t, b"\x00", reply=False)
+                self.send(t, b"\x00", False, "reset (MP-58)")
         self._state = State.DEAF if t < self._deaf_until else State.IDLE
 
-    def _stop_everything(self, t: float) -> None:
+    def _stop_everything(self, t: float, why: str) -> None:
         """Motion stops where it is; no pending reply will ever be sent. The caller sets the state."""
         if self._run is not None:
             self.stage.physical = self._run.position(t)
             self._run = None
-        self._drop_input()
+        self._drop_input(t, why)
 
     def _power_cycle(self, t: float) -> None:
         """MP-76: silent and deaf for `power_on_s`, then the power-on state; positions kept."""
-        self._stop_everything(t)
+        self._stop_everything(t, "power cycle (MP-76)")
         self._crash_latched = False
         self._deaf_until = -math.inf
         self._roe.last = None
         if self.knobs.program_retention != "always":  # MP-73
             self.programs.clear()
-        self._enter_power_on_state()
+        self._enter_power_on_state(t)
         self._powering_until = t + self.knobs.power_on_s
         self._state = State.POWERING_ON
         self._events.append({"ev": "power_cycle", "powered_at": self._powering_until})
@@ -425,9 +448,9 @@ class Mp285Device(Device):
         self._crash_latched = False
         self._events.append({"ev": "powered_on"})
 
-    def _enter_crashed(self, t: float, signature: bytes) -> None:
+    def _enter_crashed(self, t: float, signature: bytes, why: str) -> None:
         """MP-77: motion stops, 16 signature bytes, then one per received byte."""
-        self._stop_everything(t)
+        self._stop_everything(t, "crash (MP-77)")
         if self._state is State.POWERING_ON or self._state is State.LOCKED:
             self._crash_latched = True
         else:
@@ -435,11 +458,14 @@ class Mp285Device(Device):
         self._roe.last = None
         data = self._crash.start(signature)
         if data:
-            self.send(t, data, reply=False)
+            self.send(t, data, False, f"crash signature after {why} (MP-77)")
         self._events.append({"ev": "crashed"})
 
     def _crashed_input(self, byte: int, framing_error: bool, t: float) -> None:
         recovered, reply = self._crash.on_byte(byte, framing_error)  # MP-78
+        if self.notes.on:
+            self._cause = f"{byte:02X} while CRASHED"
+            self._receiver.stray(t, byte, self._cause + (": recovers (MP-78)" if recovered else ""))
         if recovered:
             self.soft_reset(t, deaf=False)
             if reply:
@@ -449,7 +475,7 @@ class Mp285Device(Device):
 
     def _lock(self, t: float) -> None:
         """MP-80: silent, ignoring all input, until power cycle."""
-        self._stop_everything(t)
+        self._stop_everything(t, "lock-up (MP-80)")
         self._state = State.LOCKED
         self._events.append({"ev": "locked"})
 

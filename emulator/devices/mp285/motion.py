@@ -17,6 +17,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import Any
 
+from emulator.devices.mp285.schema import Mp285Knobs, Mp285Stage
 from emulator.motion import Trapezoid
 from protocols import mp285 as proto
 from protocols.mp285 import Vector, round_half_away
@@ -134,7 +135,7 @@ class Stage:
     """The three axes: physical µsteps from the bottom of travel and the origin (MP-30, MP-32), the
     travel (MP-29, MP-36) and µsteps per µm (MP-28). Reported positions are physical minus origin."""
 
-    def __init__(self, stage: Any, knobs: Any) -> None:
+    def __init__(self, stage: Mp285Stage, knobs: Mp285Knobs) -> None:
         self.factors = proto.axis_factors(stage.device_type, stage.z_usteps_per_um)
         self.travel = xyz(stage.travel_usteps)
         self.physical = xyz(stage.power_on_physical_usteps)

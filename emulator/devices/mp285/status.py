@@ -4,9 +4,9 @@ MP-60 ... MP-65) and the front-panel display (§11, MP-74, MP-75)."""
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
 
 from emulator.devices.mp285.motion import Xyz
+from emulator.devices.mp285.schema import Mp285Controller, Mp285Knobs, Mp285Stage
 from protocols import mp285 as proto
 from protocols.mp285 import StatusBlock, Velocity
 
@@ -20,7 +20,7 @@ FLAGS_2_HIGH_RESOLUTION = 0x04
 class Status:
     """The profile's status template (MP-65) with the live fields filled in."""
 
-    def __init__(self, controller: Any, stage: Any, knobs: Any) -> None:
+    def __init__(self, controller: Mp285Controller, stage: Mp285Stage, knobs: Mp285Knobs) -> None:
         self.template = StatusBlock.unpack(bytes.fromhex(controller.status_template))
         #: FLAGS bit 4, set by the last ROE turn (MP-79); the template's at power-on (MP-76)
         self.roe_negative = self.template.roe_negative

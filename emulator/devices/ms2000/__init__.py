@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from emulator import registry
-from emulator.devices.ms2000.config import SCHEMA
 from emulator.devices.ms2000.controller import MS2000
+from emulator.devices.ms2000.schema import SCHEMA
 
 FAMILY = registry.register(
     registry.Family(

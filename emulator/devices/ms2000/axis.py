@@ -16,12 +16,13 @@ from typing import TYPE_CHECKING, Any
 from emulator.devices.ms2000 import trajectory
 from emulator.devices.ms2000.settings import AxisAuto, AxisSettings
 from emulator.devices.ms2000.trajectory import Trajectory
-from emulator.motion import round_half_away
+from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.controller import MoveGroup
     from emulator.devices.ms2000.modules.host import AxisHost
     from emulator.devices.ms2000.scheduler import Timer
+    from emulator.devices.ms2000.schema import Ms2000Axis
 
 UPPER = "upper"
 LOWER = "lower"
@@ -51,7 +52,7 @@ class Axis:
         host: AxisHost,
         index: int,
         letter: str,
-        cfg: Any,
+        cfg: Ms2000Axis,
         settings: AxisSettings,
         auto: AxisAuto,
         t: float,
@@ -80,7 +81,6 @@ class Axis:
         self.attempts = 0
         self.window_start = -math.inf
         self.correction: Timer | None = None
-        self.manual_velocity = 0.0
         self.wheel_goal: float | None = None
         self.ext_min = 0.0
         self.ext_max = 0.0
@@ -326,7 +326,6 @@ class Axis:
 
     def manual(self, t: float, velocity_mm_s: float) -> None:
         """Joystick motion: velocity follows the deflection without a ramp (MS-83)."""
-        self.manual_velocity = velocity_mm_s
         if self.activity not in (Activity.IDLE, Activity.MANUAL) or not self.enabled:
             return
         if velocity_mm_s == 0:
@@ -503,4 +502,3 @@ class Axis:
         self.stop(t)
         self._cancel_correction()
         self.hold = False
-        self.manual_velocity = 0.0

@@ -12,8 +12,8 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
-from emulator.motion import round_half_away
 from protocols.ms2000 import CommandSpec, ErrorCode, Fmt, Item, Kind, Shape, format_items, format_value
+from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis

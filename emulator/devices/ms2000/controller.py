@@ -7,6 +7,10 @@ reset and flash in power.py, the control channel in surface.py, command handlers
 low-level frames in lowlevel.py, reports in info.py, buttons in buttons.py, TTL in ttl.py. Axes see
 the controller as an `AxisHost` (axis.py) and firmware modules as a `ModuleHost` (modules/host.py);
 module hooks are called only through `self.modules`, a ModuleSet (modules/moduleset.py).
+
+While explaining (a traffic log is kept) the interpreter and the low-level decoder note each unit of
+input, `_receive` notes garbled and silenced input, and `send_raw` summarises each output with the
+command it answers.
 """
 
 from __future__ import annotations
@@ -16,24 +20,35 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from emulator.device import MAIN, Device, Emission, HostLine, HostServices, LineSettings
+from emulator.device import (
+    GARBLED,
+    LOST,
+    MAIN,
+    REPLY,
+    UNSOLICITED,
+    Device,
+    Emission,
+    HostLine,
+    HostServices,
+    LineSettings,
+)
 from emulator.devices.ms2000.axis import LOWER, UPPER, Activity, Axis
 from emulator.devices.ms2000.buttons import TTL_ENABLE_BIT, Buttons
 from emulator.devices.ms2000.calls import Rendered, Reply
 from emulator.devices.ms2000.commands import BaseCommands
-from emulator.devices.ms2000.config import baud_of
 from emulator.devices.ms2000.interpreter import Interpreter
 from emulator.devices.ms2000.lowlevel import LowLevel
 from emulator.devices.ms2000.modules.moduleset import ModuleSet
 from emulator.devices.ms2000.power import Power
 from emulator.devices.ms2000.scheduler import Scheduler, Timer
+from emulator.devices.ms2000.schema import Ms2000Config, baud_of
 from emulator.devices.ms2000.settings import CardAuto
 from emulator.devices.ms2000.surface import ControlSurface
 from emulator.devices.ms2000.ttl import BASE_OUT_MODES, Ttl
-from emulator.motion import round_half_away
 from emulator.profile import Profile
 from protocols import ms2000 as proto
 from protocols.ms2000 import Shape
+from protocols.rounding import round_half_away
 
 ERROR_LOG_SIZE = 64
 TRAJECTORY_SIZE = 500
@@ -61,14 +76,12 @@ def garble(data: bytes) -> bytes:
 
 
 class MS2000(Device):
-    def __init__(self, name: str, profile: Profile, now: float, services: HostServices) -> None:
+    def __init__(self, name: str, profile: Profile[Ms2000Config], now: float, services: HostServices) -> None:
         super().__init__(name, profile, now, services)
         self.cfg = profile.config
         self.knobs = self.cfg.knobs
         self.servo_s = self.cfg.servo_ms / 1000
         self.scheduler = Scheduler()
-        #: the latest device time the model was called at
-        self.now = now
         self.power = Power(self)
         self.axes = [
             Axis(
@@ -114,12 +127,7 @@ class MS2000(Device):
 
     # ---- Device contract: time ----------------------------------------------------------------
 
-    def _touch(self, now: float) -> None:
-        if now > self.now:
-            self.now = now
-
-    def advance(self, now: float) -> None:
-        self._touch(now)
+    def _advance(self, now: float) -> None:
         self.scheduler.run_due(now)
         if self.power.positions_dirty:
             self.power.persist_idle_positions(now)
@@ -139,7 +147,6 @@ class MS2000(Device):
         return LineSettings(self.baud, 8, "none", self.card.stop_bits, False, False)
 
     def line_changed(self, host: HostLine | None, now: float, channel: str = MAIN) -> None:
-        self._touch(now)
         self._host_seen = host
         # the transport now reports what it can see; declarations of what it cannot see stay
         self._host_declared = (
@@ -182,12 +189,15 @@ class MS2000(Device):
             return "harmless: the controller samples only the first stop bit"
         return "harmless: the controller ignores flow control"
 
-    def receive(self, data: bytes, now: float, channel: str = MAIN) -> None:
-        self._touch(now)
-        if channel != MAIN or self.interpreter.silenced:
+    def _receive(self, data: bytes, now: float, channel: str) -> None:
+        if self.interpreter.silenced:
+            if self.notes.on:
+                self.notes.rx(now, LOST, data, "silent after SP (MS-113)")
             return
         garbled = self.garbles()
-        self.interpreter.feed(garble(data) if garbled else data, now, garbled)
+        if garbled:
+            data = self._garble_in(data, now)
+        self.interpreter.feed(data, now, garbled)
         self.scheduler.run_due(now)
         if self.power.positions_dirty:
             self.power.persist_idle_positions(now)
@@ -195,14 +205,12 @@ class MS2000(Device):
     # ---- Device contract: control channel, non-volatile memory ----------------------------------
 
     def observe(self, name: str, now: float) -> Any:
-        self._touch(now)
-        return self.surface.observe(name, self.now)
+        return self.surface.observe(name, now)
 
-    def snapshot(self) -> dict[str, Any]:
-        return self.surface.snapshot(self.now)
+    def snapshot(self, now: float) -> dict[str, Any]:
+        return self.surface.snapshot(now)
 
     def control_input(self, name: str, params: dict[str, Any], now: float) -> Any:
-        self._touch(now)
         result = self.surface.control_input(name, params, now)
         self.scheduler.run_due(now)
         return result
@@ -233,10 +241,36 @@ class MS2000(Device):
             shape = Shape(overrides[key]) if key in overrides else self.shapes.get(key, Shape.A_AXIS)
         return Rendered(shape, self.knobs.reply_trailing_space, self.card.vb_decimals)
 
-    def send_raw(self, data: bytes, t: float) -> None:
+    def send_raw(self, data: bytes, t: float, to: str | None = None) -> None:
+        """Send bytes at `t`: the reply to the command `to` (its description while explaining, any
+        string otherwise), or unsolicited output when `to` is None."""
+        kind = REPLY if to is not None else UNSOLICITED
+        summary = None
+        if self.notes.on:
+            summary = f"{proto.shown(data)} ({'unsolicited' if to is None else 'reply to ' + to})"
         if self.garbles():
             data = garble(data)
-        self._outbox.append(Emission(t, data))
+            kind = GARBLED
+            if summary is not None:
+                summary = (
+                    f"garbled: {self._mismatch()} the host reads {proto.shown(data)} of {summary} (MS-4)"
+                )
+        self._outbox.append(Emission(t, data, kind=kind, summary=summary))
+
+    def _garble_in(self, data: bytes, t: float) -> bytes:
+        """MS-4: what the controller reads of bytes a mismatched host sent."""
+        junk = garble(data)
+        if self.notes.on:
+            summary = (
+                f"garbled: {self._mismatch()} the device reads {data.hex(' ')} as {junk.hex(' ')} (MS-4)"
+            )
+            self.notes.rx(t, GARBLED, junk, summary)
+        return junk
+
+    def _mismatch(self) -> str:
+        host = self.host_line()
+        seen = "?" if host is None else host.filled(self.line_settings()).describe()
+        return f"host at {seen}, device at {self.line_settings().describe()}:"
 
     def unsolicited(self, text: str, t: float) -> None:
         """An unsolicited line with the current terminator (MS-18, MS-96)."""
@@ -432,8 +466,3 @@ class MS2000(Device):
         """Axes reported by IN0 mode 5: a module's selection (RING BUFFER's `RM Y`, MS-RB-4) or all."""
         mask = self.modules.report_mask()
         return list(self.axes) if mask is None else [a for a in self.axes if mask & (1 << a.index)]
-
-    # ---- traffic log --------------------------------------------------------------------------
-
-    def summarize(self, direction: str, data: bytes) -> str | None:
-        return proto.summarize(direction, data)

@@ -5,16 +5,15 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING
 
-from emulator.devices.ms2000.config import INPUT_DEVICES
+from emulator.devices.ms2000.schema import INPUT_DEVICES
 from emulator.devices.ms2000.status import move_stat
-from emulator.motion import round_half_away
-from protocols.ms2000 import fixed
+from protocols.ms2000 import BU_CMDS, BU_MOTOR_AXES, INFO_LEFT_WIDTH, fixed
+from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
     from emulator.devices.ms2000.controller import MS2000
 
-LEFT_WIDTH = 33
 LABEL_WIDTH = 13
 VALUE_WIDTH = 10
 
@@ -24,7 +23,7 @@ def _item(label: str, value: str, suffix: str = "") -> str:
 
 
 def _row(left: str, right: str) -> str:
-    return f"{left:<{LEFT_WIDTH}}{right}"
+    return f"{left:<{INFO_LEFT_WIDTH}}{right}"
 
 
 def info_block(ctl: MS2000, axis: Axis, t: float) -> list[str]:
@@ -113,8 +112,8 @@ def build_lines(ctl: MS2000) -> list[str]:
     cfg = ctl.cfg
     lines = [
         cfg.build_name,
-        "Motor Axes: " + " ".join(a.letter for a in ctl.axes),
-        f"CMDs: {cfg.cmd_letters}",
+        " ".join([BU_MOTOR_AXES, *(a.letter for a in ctl.axes)]),
+        f"{BU_CMDS} {cfg.cmd_letters}",
         cfg.bootldr,
         cfg.hdwr,
     ]

@@ -3,6 +3,10 @@
 It owns line assembly (`max_line`, MS-9), the 0xFF control sequences and the switch to low-level
 mode (MS-119), the lines waiting behind a command that replies late (MS-13, MS-33), HALT's way past
 them (MS-76) and the silence after a bare `SP` (MS-113).
+
+While explaining it notes each unit it reads: a command line or control sequence (`frame`, the line's
+bytes kept in `_heard`), junk or an unknown control sequence (`stray`), input it drops (`lost`); and
+names the line each reply answers.
 """
 
 from __future__ import annotations
@@ -10,6 +14,7 @@ from __future__ import annotations
 from collections import deque
 from typing import TYPE_CHECKING
 
+from emulator.device import FRAME, LOST, STRAY
 from emulator.devices.ms2000.calls import Call, CommandError, Pending, Reply
 from emulator.devices.ms2000.commands.base import Handler
 from protocols import ms2000 as proto
@@ -19,6 +24,15 @@ if TYPE_CHECKING:
     from emulator.devices.ms2000.controller import MS2000
     from emulator.devices.ms2000.scheduler import Timer
 
+#: the 0xFF control sequences (MS-119), for the traffic log
+CONTROL_SEQUENCES = {
+    0x42: "enter low-level mode",
+    0x41: "return to high-level mode",
+    0x52: "reset",
+    0x48: "WHERE in hundredths of a micron",
+    0x54: "WHERE in tenths of a micron",
+}
+
 
 class Interpreter:
     def __init__(self, ctl: MS2000, handlers: dict[str, Handler]) -> None:
@@ -27,13 +41,15 @@ class Interpreter:
         self.low_level = False
         self.silenced = False
         self._line = bytearray()
+        #: every byte of the line being read, beyond `max_line` too (while explaining)
+        self._heard = bytearray()
         self._overflow = False
         self._ff = False
         #: bytes read while the host's settings mismatched (MS-4): dropped once they match again
         self._junk = False
         self._queue: deque[bytes | None] = deque()
-        #: the command waiting to reply, whether it ends lines with CR only, and its timer
-        self._pending: tuple[Pending, bool, Timer | None] | None = None
+        #: the command waiting to reply, whether it ends lines with CR only, its timer and its line
+        self._pending: tuple[Pending, bool, Timer | None, bytes | None] | None = None
 
     @property
     def mode(self) -> str:
@@ -46,13 +62,22 @@ class Interpreter:
             # MS-4 [choice]: what a mismatched host left half-assembled is dropped once its settings
             # match again, so its first line at the right settings is read cleanly (TV-120)
             self._junk = False
-            self._line.clear()
-            self._overflow = False
-            self.ctl.low.decoder.reset()
-        for byte in data:
+            self._drop_line(t, STRAY, "junk from a mismatched host, dropped (MS-4)")
+            self.ctl.low.drop(t, STRAY, "junk from a mismatched host, dropped (MS-4)")
+        for index, byte in enumerate(data):
             if self.silenced:
+                if self.ctl.notes.on:
+                    self.ctl.notes.rx(t, LOST, data[index:], "silent after SP (MS-113)")
                 break
             self._byte(byte, t)
+
+    def _drop_line(self, t: float, kind: str, why: str) -> None:
+        """The partial line is discarded (noted as `kind` for `why`)."""
+        if self._heard:
+            self.ctl.notes.rx(t, kind, bytes(self._heard), why)
+            self._heard.clear()
+        self._line.clear()
+        self._overflow = False
 
     def _byte(self, byte: int, t: float) -> None:
         if self._ff:
@@ -68,22 +93,30 @@ class Interpreter:
             self._overflow = False
             self._on_line(line, t)
             self.ctl.scheduler.run_due(t)
-        elif len(self._line) >= self.ctl.knobs.max_line:
-            self._overflow = True
         else:
-            self._line.append(byte)
+            if self.ctl.notes.on:
+                self._heard.append(byte)
+            if len(self._line) >= self.ctl.knobs.max_line:
+                self._overflow = True
+            else:
+                self._line.append(byte)
 
     def _control_sequence(self, byte: int, t: float) -> None:
         ctl = self.ctl
+        if ctl.notes.on:
+            name = CONTROL_SEQUENCES.get(byte)
+            if byte == 0x42 and "LL COMMANDS" not in ctl.cfg.modules:
+                name = None  # MS-119: discarded without the module
+            summary = f"FF {byte:02X}: {name or 'unknown control sequence, discarded'} (MS-119)"
+            ctl.notes.rx(t, FRAME if name else STRAY, bytes((proto.CONTROL, byte)), summary)
         if byte == 0x42:  # 'B'
             if "LL COMMANDS" in ctl.cfg.modules:
                 self.low_level = True
-                self._line.clear()
-                self._overflow = False
+                self._drop_line(t, LOST, "partial line discarded entering low-level mode (MS-119)")
                 ctl.low.reset()
         elif byte == 0x41:  # 'A'
             self.low_level = False
-            ctl.low.decoder.reset()
+            ctl.low.drop(t, LOST, "partial frame dropped leaving low-level mode (MS-119)")
         elif byte == 0x52:  # 'R'
             ctl.power.software_reset(t)
         elif byte == 0x48:  # 'H'
@@ -92,8 +125,15 @@ class Interpreter:
             ctl.card.vb_decimals = 0
 
     def _on_line(self, line: bytes | None, t: float) -> None:
-        if self._pending is not None:
-            if line is not None and self._pending[0].haltable and self._is_halt(line):
+        pending = self._pending
+        halts = pending is not None and line is not None and pending[0].haltable and self._is_halt(line)
+        if self.ctl.notes.on:
+            self._heard.append(0x0D)
+            waits = " (waits for the pending command, MS-13)" if pending is not None and not halts else ""
+            self.ctl.notes.rx(t, FRAME, bytes(self._heard), self.describe(line) + waits)
+            self._heard.clear()
+        if pending is not None:
+            if halts:
                 self.cancel_pending(t, reply=True)
                 self._execute(line, t)
                 self.drain(t)
@@ -101,6 +141,11 @@ class Interpreter:
                 self._queue.append(line)
             return
         self._execute(line, t)
+
+    @staticmethod
+    def describe(line: bytes | None) -> str:
+        """A command line for the traffic log (None: one over `max_line`, MS-9)."""
+        return "over-long line (MS-9)" if line is None else proto.summarize_line(line)
 
     @staticmethod
     def _is_halt(line: bytes) -> bool:
@@ -113,9 +158,9 @@ class Interpreter:
         if isinstance(result, Pending):
             due = result.due
             timer = None if due is None else self.ctl.scheduler.at(due, self._finish_pending)
-            self._pending = (result, cr_only, timer)
+            self._pending = (result, cr_only, timer, line)
         else:
-            self._send(result, t, cr_only)
+            self._send(result, t, cr_only, line)
 
     def _dispatch(self, line: bytes | None, t: float) -> Reply | Pending:
         ctl = self.ctl
@@ -138,9 +183,9 @@ class Interpreter:
     def _finish_pending(self, t: float) -> None:
         if self._pending is None:
             return
-        pending, cr_only, _ = self._pending
+        pending, cr_only, _, line = self._pending
         self._pending = None
-        self._send(pending.finish(t), t, cr_only)
+        self._send(pending.finish(t), t, cr_only, line)
         self.drain(t)
 
     def release(self, t: float) -> None:
@@ -151,36 +196,46 @@ class Interpreter:
     def cancel_pending(self, t: float, reply: bool) -> None:
         if self._pending is None:
             return
-        pending, cr_only, timer = self._pending
+        pending, cr_only, timer, line = self._pending
         self._pending = None
         if timer is not None:
             timer.cancel()
         pending.cancel(t)
         if reply:
-            self._send(self.ctl.error(ErrorCode.HALTED), t, cr_only)
+            self._send(self.ctl.error(ErrorCode.HALTED), t, cr_only, line)
 
     def drain(self, t: float) -> None:
         while self._queue and self._pending is None and not self.silenced:
             self._execute(self._queue.popleft(), t)
 
-    def _send(self, reply: Reply, t: float, cr_only: bool) -> None:
+    def _send(self, reply: Reply, t: float, cr_only: bool, line: bytes | None) -> None:
         if reply.lines:
-            self.ctl.send_raw(proto.frame(reply.lines, cr_only), t)
+            to = self.describe(line) if self.ctl.notes.on else ""
+            self.ctl.send_raw(proto.frame(reply.lines, cr_only), t, to)
+
+    # The calls below come from the controller's power and reset code, which runs at the latest
+    # device time (`ctl.now`): drops are noted then.
 
     def silence(self) -> None:
         """`SP` alone: ignore all input until a power cycle (MS-113)."""
         self.silenced = True
-        self._queue.clear()
-        self._line.clear()
+        self._drop_queue("silent after SP (MS-113)")
+        self._drop_line(self.ctl.now, LOST, "silent after SP (MS-113)")
 
     def restart(self) -> None:
         """Reset and power-up: back to ASCII mode with an empty line (MS-112)."""
         self.low_level = False
-        self._line.clear()
-        self._overflow = False
+        self._drop_line(self.ctl.now, LOST, "partial line dropped by a reset (MS-112)")
 
     def power_off(self) -> None:
         """Waiting lines, a half-received control sequence and the silence are gone (MS-113)."""
-        self._queue.clear()
+        self._drop_queue("waiting line dropped by a power cycle (MS-113)")
         self.silenced = False
         self._ff = False
+
+    def _drop_queue(self, why: str) -> None:
+        if self.ctl.notes.on:
+            for line in self._queue:
+                data = b"" if line is None else line + b"\r"
+                self.ctl.notes.rx(self.ctl.now, LOST, data, f"{self.describe(line)}: {why}")
+        self._queue.clear()

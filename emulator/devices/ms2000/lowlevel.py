@@ -1,13 +1,15 @@
 """Low-level binary mode (§8): frames addressed by axis id, numbers in tenths of a micron of user
-position, 24-bit two's complement least significant byte first (MS-120, MS-121)."""
+position, 24-bit two's complement least significant byte first (MS-120, MS-121). While explaining,
+each frame is noted with its bytes (`frame`, or `stray` for one the controller ignores)."""
 
 from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from emulator.device import FRAME, STRAY
 from emulator.devices.ms2000.status import status_byte
-from emulator.motion import round_half_away
 from protocols.ms2000 import LLCommand, LLFrame, LLFrameDecoder, decode_int24, encode_int24
+from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
@@ -23,14 +25,29 @@ class LowLevel:
         self.ctl = ctl
         self.decoder = LLFrameDecoder()
         self.increments: dict[str, int] = {}
+        #: bytes of the frame being decoded (while explaining)
+        self._heard = bytearray()
 
     def reset(self) -> None:
         self.decoder.axis_ids = {a.s.ll_id for a in self.ctl.axes}
         self.decoder.reset()
+        self._heard.clear()
         self.increments = {a.hw_letter: DEFAULT_INCREMENT for a in self.ctl.axes}
+
+    def drop(self, t: float, kind: str, why: str) -> None:
+        """The frame being decoded is discarded (noted as `kind` for `why`)."""
+        self.decoder.reset()
+        if self._heard:
+            self.ctl.notes.rx(t, kind, bytes(self._heard), why)
+            self._heard.clear()
 
     def feed(self, byte: int, t: float) -> None:
         frame = self.decoder.feed(byte)
+        if self.ctl.notes.on:
+            self._heard.append(byte)
+            if frame is not None:
+                self.ctl.notes.rx(t, FRAME if frame.known else STRAY, bytes(self._heard), describe(frame))
+                self._heard.clear()
         if frame is not None and frame.known:
             self.execute(frame, t)
 
@@ -44,16 +61,17 @@ class LowLevel:
         ctl = self.ctl
         command = LLCommand(frame.command)
         status = status_byte(axis, t, ctl.knobs.status_bit5_up_is_one, low_level=True)
+        to = describe(frame) if ctl.notes.on else ""
         if command is LLCommand.BUSY:
-            ctl.send_raw(b"B" if axis.busy(t) else b"b", t)
+            ctl.send_raw(b"B" if axis.busy(t) else b"b", t, to)
         elif command is LLCommand.POSITION:
-            ctl.send_raw(encode_int24(self._tenths(axis, t)), t)
+            ctl.send_raw(encode_int24(self._tenths(axis, t)), t, to)
         elif command is LLCommand.POSITION_STATUS:
-            ctl.send_raw(encode_int24(self._tenths(axis, t)) + bytes([status]), t)
+            ctl.send_raw(encode_int24(self._tenths(axis, t)) + bytes([status]), t, to)
         elif command is LLCommand.STATUS:
-            ctl.send_raw(bytes([status]), t)
+            ctl.send_raw(bytes([status]), t, to)
         elif command is LLCommand.READ_INCREMENT:
-            ctl.send_raw(encode_int24(self.increments[axis.hw_letter]), t)
+            ctl.send_raw(encode_int24(self.increments[axis.hw_letter]), t, to)
         elif command is LLCommand.START_MOTOR:
             ctl.enable_motor(axis, t)
         elif command in (LLCommand.JOYSTICK_ON, LLCommand.JOYSTICK_OFF):
@@ -67,3 +85,14 @@ class LowLevel:
             sign = 1 if command is LLCommand.STEP_UP else -1
             step_mm = sign * self.increments[axis.hw_letter] / TENTHS_PER_MM
             ctl.start_moves([(axis, ctl.relative_goal(axis, step_mm, t))], t)
+
+
+def describe(frame: LLFrame) -> str:
+    """A low-level frame for the traffic log, e.g. `low-level a (POSITION) to axis 18`."""
+    if frame.command in LLCommand._value2member_map_:
+        name = f"{chr(frame.command)} ({LLCommand(frame.command).name})"
+    else:
+        name = f"{frame.command:02X}"
+    data = f" data {frame.data.hex(' ')}" if frame.data else ""
+    ignored = "" if frame.known else ", ignored (MS-123)"
+    return f"low-level {name} to axis {frame.axis_id:02X}{data}{ignored}"

@@ -13,8 +13,8 @@ from typing import TYPE_CHECKING, Any
 from emulator.device import ControlError
 from emulator.devices.ms2000.axis import LOWER, UPPER
 from emulator.devices.ms2000.calls import Pending, Reply
-from emulator.devices.ms2000.config import baud_of
 from emulator.devices.ms2000.flash import Flash
+from emulator.devices.ms2000.schema import baud_of
 from emulator.devices.ms2000.settings import (
     AxisAuto,
     AxisSettings,
@@ -24,8 +24,8 @@ from emulator.devices.ms2000.settings import (
     from_plain,
     to_plain,
 )
-from emulator.motion import round_half_away
 from emulator.nvstore import StorageError
+from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.controller import MS2000

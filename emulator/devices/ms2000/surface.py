@@ -10,7 +10,7 @@ from emulator.device import ControlError
 from emulator.devices.ms2000.axis import LOWER, UPPER, Activity, Axis
 from emulator.devices.ms2000.buttons import NAMES as BUTTON_NAMES
 from emulator.devices.ms2000.status import status_byte
-from emulator.motion import round_half_away
+from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.controller import MS2000

@@ -25,7 +25,7 @@ from tests.conformance.mp285.wire import (
 pytestmark = pytest.mark.control
 
 
-def test_tv_46_crashed_unit_answers_nul(open_target: OpenTarget) -> None:
+def test_tv_046_crashed_unit_answers_nul(open_target: OpenTarget) -> None:
     """TV-46 (MP-77): fault `crash`: sixteen `00` at once, then one `00` per byte received, nothing
     executed: `63 0D` gives `00 00`, 400 × `0D` 400 × `00`, and the unit is still crashed."""
     target, host, _ = frozen(open_target)
@@ -37,7 +37,7 @@ def test_tv_46_crashed_unit_answers_nul(open_target: OpenTarget) -> None:
     host.quiet(0.05)
 
 
-def test_tv_46_power_cycle_recovers(open_target: OpenTarget) -> None:
+def test_tv_046_power_cycle_recovers(open_target: OpenTarget) -> None:
     """TV-46 (MP-76): after fault `crash` and fault `power_cycle` the unit is silent and deaf for
     1 s: a `63 0D` 0.5 s after the power cycle gets nothing, one at 1.1 s the 13 position bytes.
     (Real time: bytes lost while powering on leave no trace a paused clock could wait for; both are
@@ -55,7 +55,7 @@ def test_tv_46_power_cycle_recovers(open_target: OpenTarget) -> None:
     host.quiet(0.05)
 
 
-def test_tv_46_ctrl_c_recovery(open_target: OpenTarget) -> None:
+def test_tv_046_ctrl_c_recovery(open_target: OpenTarget) -> None:
     """TV-46 (MP-78): `crash_recovery: ctrl_c`: a ^C revives a crashed unit and is answered `0D`."""
     target, host, _ = frozen(open_target, overrides={"knobs": {"crash_recovery": "ctrl_c"}})
     target.input("crash")
@@ -64,7 +64,7 @@ def test_tv_46_ctrl_c_recovery(open_target: OpenTarget) -> None:
     host.exchange(GET_POSITION, ZEROS + CR)
 
 
-def test_tv_47_roe_crash(open_target: OpenTarget) -> None:
+def test_tv_047_roe_crash(open_target: OpenTarget) -> None:
     """TV-47 (MP-79): `roe_crash: true`; one ROE click on X moves it by ROE_VARI = 7 µsteps; a
     `63 0D` 0.3 s later is answered, one 0.7 s later (inside [0.5, 1.0)) crashes the unit: sixteen
     `00`, then `00 00` for the two bytes."""
@@ -78,7 +78,7 @@ def test_tv_47_roe_crash(open_target: OpenTarget) -> None:
     assert target.get("crashed") is True
 
 
-def test_tv_48_incomplete_frame_locks_up(open_target: OpenTarget) -> None:
+def test_tv_048_incomplete_frame_locks_up(open_target: OpenTarget) -> None:
     """TV-48 (MP-80): `lockup_incomplete_frame_s: 1.0`: `6D 01 02` then 1.5 s of silence locks the
     unit: `63 0D` gets nothing; after fault `power_cycle` and 1.0 s, `63 0D` gives 13 bytes."""
     target, host, clock = frozen(open_target, overrides={"knobs": {"lockup_incomplete_frame_s": 1.0}})
@@ -92,7 +92,7 @@ def test_tv_48_incomplete_frame_locks_up(open_target: OpenTarget) -> None:
     host.exchange(GET_POSITION, ZEROS + CR)
 
 
-def test_tv_49_query_without_interrupting(open_target: OpenTarget) -> None:
+def test_tv_049_query_without_interrupting(open_target: OpenTarget) -> None:
     """TV-49 (MP-51, MP-46): `query_interrupts_move: false`: during the TV-31 move, `63` at 1.000 s
     and its CR one character later are answered at once with X = 5005 (interpolated at the CR); the
     move goes on: `0D` at 5.150 s, then X = 25,000."""

@@ -26,12 +26,12 @@ CTRL_C_PAYLOAD = hx("6D 03 00 00 00 00 00 00 00 00 00 00 00 0D")
 CTRL_C_PAYLOAD_TIME = 3 / 25 / 200 + 0.15
 
 
-def test_tv_06_position_at_power_on(open_target: OpenTarget) -> None:
+def test_tv_006_position_at_power_on(open_target: OpenTarget) -> None:
     """TV-6 (MP-13, MP-27, MP-35): `63 0D` gives twelve `00` and `0D`."""
     connect(open_target).exchange(GET_POSITION, ZEROS + CR)
 
 
-def test_tv_07_payload_bytes_equal_to_cr(open_target: OpenTarget) -> None:
+def test_tv_007_payload_bytes_equal_to_cr(open_target: OpenTarget) -> None:
     """TV-7 (MP-8, MP-10, MP-31): the parser never looks for CR inside a frame; the position reply
     containing `0D` bytes is read by count."""
     host = connect(open_target)
@@ -45,12 +45,12 @@ def assert_move_reply_time(host: Host, frame: bytes, seconds: float) -> None:
 
 
 @pytest.mark.timing
-def test_tv_07_move_reply_time(open_target: OpenTarget) -> None:
+def test_tv_007_move_reply_time(open_target: OpenTarget) -> None:
     """TV-7 (MP-43, MP-44): the move's `0D` at 0.818 s (133.64 µm at 200 µm/s + 0.15 s)."""
     assert_move_reply_time(connect(open_target), CR_PAYLOAD, CR_PAYLOAD_TIME)
 
 
-def test_tv_08_ctrl_c_byte_inside_a_payload_is_data(open_target: OpenTarget) -> None:
+def test_tv_008_ctrl_c_byte_inside_a_payload_is_data(open_target: OpenTarget) -> None:
     """TV-8 (MP-9): `03` inside a payload is data: the move to X = 3 runs and answers `0D`."""
     host = connect(open_target)
     host.exchange(CTRL_C_PAYLOAD, CR, within=CTRL_C_PAYLOAD_TIME)
@@ -58,17 +58,17 @@ def test_tv_08_ctrl_c_byte_inside_a_payload_is_data(open_target: OpenTarget) -> 
 
 
 @pytest.mark.timing
-def test_tv_08_move_reply_time(open_target: OpenTarget) -> None:
+def test_tv_008_move_reply_time(open_target: OpenTarget) -> None:
     """TV-8 (MP-43, MP-44): the move's `0D` at 0.1506 s (3 µsteps at 200 µm/s + 0.15 s)."""
     assert_move_reply_time(connect(open_target), CTRL_C_PAYLOAD, CTRL_C_PAYLOAD_TIME)
 
 
-def test_tv_09_two_commands_in_one_write(open_target: OpenTarget) -> None:
+def test_tv_009_two_commands_in_one_write(open_target: OpenTarget) -> None:
     """TV-9 (MP-12): `73 0D 63 0D` in one write: the 33 status bytes, then the 13 position bytes."""
     connect(open_target).exchange(hx("73 0D 63 0D"), DUMP_A + ZEROS + CR)
 
 
-def test_tv_10_no_inter_byte_timeout(open_target: OpenTarget) -> None:
+def test_tv_010_no_inter_byte_timeout(open_target: OpenTarget) -> None:
     """TV-10 (MP-25): `63`, ten seconds of silence, `0D`: the 13 position bytes. On the emulator
     device time runs 50× (silence is silence at any speed)."""
     host = connect(open_target, scale=50)
@@ -82,7 +82,7 @@ def test_tv_10_no_inter_byte_timeout(open_target: OpenTarget) -> None:
     [("73 0D 0A", DUMP_A + CR), ("63 0D 0A", ZEROS + CR + CR), ("61 0D 0A", CR + CR)],
     ids=["s", "c", "a"],
 )
-def test_tv_11_cr_lf_host_gets_one_more_cr(open_target: OpenTarget, frame: str, reply: bytes) -> None:
+def test_tv_011_cr_lf_host_gets_one_more_cr(open_target: OpenTarget, frame: str, reply: bytes) -> None:
     """TV-11 (MP-20): a host ending commands with CR LF (bytes one character time, about 1 ms,
     apart) gets one CR more for the LF: 34, 14 and 2 bytes, and nothing else."""
     host = connect(open_target)
@@ -95,7 +95,7 @@ def test_tv_11_cr_lf_host_gets_one_more_cr(open_target: OpenTarget, frame: str, 
     [("73 0D 0A", DUMP_A), ("63 0D 0A", ZEROS + CR), ("61 0D 0A", CR)],
     ids=["s", "c", "a"],
 )
-def test_tv_11_stray_terminator_ignored(open_target: OpenTarget, frame: str, reply: bytes) -> None:
+def test_tv_011_stray_terminator_ignored(open_target: OpenTarget, frame: str, reply: bytes) -> None:
     """TV-11 (MP-20): `stray_terminator_reply: ignore`: 33, 13 and 1 bytes, the LF unanswered."""
     host = connect(open_target, overrides={"knobs": {"stray_terminator_reply": "ignore"}})
     host.exchange(hx(frame), reply)
@@ -103,7 +103,7 @@ def test_tv_11_stray_terminator_ignored(open_target: OpenTarget, frame: str, rep
 
 
 @pytest.mark.parametrize(("frame", "reply"), [("0D", "0D"), ("0A", "0D"), ("0D 0D 0D", "0D 0D 0D")])
-def test_tv_11_lone_terminators(open_target: OpenTarget, frame: str, reply: str) -> None:
+def test_tv_011_lone_terminators(open_target: OpenTarget, frame: str, reply: str) -> None:
     """TV-11 (MP-20): a lone CR or LF between frames is answered with CR, each one."""
     host = connect(open_target)
     host.exchange(hx(frame), hx(reply))
@@ -111,7 +111,7 @@ def test_tv_11_lone_terminators(open_target: OpenTarget, frame: str, reply: str)
 
 
 @pytest.mark.parametrize("frame", ["43 0D", "52 0D", "76 0D", "78 79 7A 0D", "00 0D"])
-def test_tv_12_unknown_commands(open_target: OpenTarget, frame: str) -> None:
+def test_tv_012_unknown_commands(open_target: OpenTarget, frame: str) -> None:
     """TV-12 (MP-21, MP-19, MP-14, MP-59): another family's `C`, the interposer's `R`, lower-case
     `v`, several bad bytes, a NUL: discarded through the CR, then `34 0D` once."""
     host = connect(open_target)
@@ -119,7 +119,7 @@ def test_tv_12_unknown_commands(open_target: OpenTarget, frame: str) -> None:
     host.quiet(0.05)
 
 
-def test_tv_13_bad_terminator(open_target: OpenTarget) -> None:
+def test_tv_013_bad_terminator(open_target: OpenTarget) -> None:
     """TV-13 (MP-22): `63 63 0D` gives `34 0D`. After `63 0A` (a Unix newline) nothing comes; the
     next `63 0D` is swallowed by the discarding, and its CR releases `34 0D`."""
     host = connect(open_target)
@@ -130,7 +130,7 @@ def test_tv_13_bad_terminator(open_target: OpenTarget) -> None:
     host.exchange(GET_POSITION, ZEROS + CR)
 
 
-def test_tv_14_buffer_overrun(open_target: OpenTarget) -> None:
+def test_tv_014_buffer_overrun(open_target: OpenTarget) -> None:
     """TV-14 (MP-23): `71` then 64 × `41`, no CR: `32 0D` when the 65th byte arrives, not before;
     the CR that ends the discarding owes nothing; `63 0D` is then answered normally."""
     host = connect(open_target)
@@ -143,14 +143,14 @@ def test_tv_14_buffer_overrun(open_target: OpenTarget) -> None:
 
 
 @pytest.mark.timing
-def test_tv_14_overrun_reply_time(open_target: OpenTarget) -> None:
+def test_tv_014_overrun_reply_time(open_target: OpenTarget) -> None:
     """TV-14 (MP-23): the `32 0D` is sent as the 65th byte is processed."""
     host = connect(open_target)
     done = host.send(hx("71") + b"A" * 64)
     assert_at(host.expect(hx("32 0D")), done + 2 * CHAR)
 
 
-def test_tv_15_eight_byte_longs(open_target: OpenTarget) -> None:
+def test_tv_015_eight_byte_longs(open_target: OpenTarget) -> None:
     """TV-15 (MP-26, MP-22): a host packing (250, 500, -11) as 8-byte longs: byte 13 (`00`) sits in
     the terminator position, so `34 0D` comes when the 26th byte arrives and nothing moves. A host
     reading one byte leaves the `0D` pending."""
@@ -164,7 +164,7 @@ def test_tv_15_eight_byte_longs(open_target: OpenTarget) -> None:
     host.exchange(GET_POSITION, ZEROS + CR)
 
 
-def test_tv_16_eight_byte_longs_with_a_cr_byte(open_target: OpenTarget) -> None:
+def test_tv_016_eight_byte_longs_with_a_cr_byte(open_target: OpenTarget) -> None:
     """TV-16 (MP-26): the same host with Z = 13: discarding ends at byte 17 (Z's `0D`), `34 0D`;
     byte 18 (`00`) is an unknown command, discarded through byte 25: `34 0D` again. No motion."""
     frame = hx("6D FA 00 00 00 00 00 00 00 F4 01 00 00 00 00 00 00 0D 00 00 00 00 00 00 00 0D")
@@ -174,7 +174,7 @@ def test_tv_16_eight_byte_longs_with_a_cr_byte(open_target: OpenTarget) -> None:
     host.exchange(GET_POSITION, ZEROS + CR)
 
 
-def test_tv_17_positions_far_outside_travel(open_target: OpenTarget) -> None:
+def test_tv_017_positions_far_outside_travel(open_target: OpenTarget) -> None:
     """TV-17 (MP-30, MP-31): with the origin far from the axes, `63 0D` gives the reply captured
     from a real MP-285, (-4,596,737, -4,576,262, -16,148,393)."""
     host = connect(open_target, overrides={"stage": {"origin_usteps_from_bot": [4909237, 4888762, 16460893]}})

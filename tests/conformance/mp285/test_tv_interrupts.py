@@ -55,7 +55,7 @@ def start_long_move(host: Host) -> float:
 
 
 @pytest.mark.parametrize(("frame", "reply"), [("03", "0D"), ("03 0D", "0D 0D"), ("03 0D 0A", "0D 0D 0D")])
-def test_tv_30_idle_ctrl_c(open_target: OpenTarget, frame: str, reply: str) -> None:
+def test_tv_030_idle_ctrl_c(open_target: OpenTarget, frame: str, reply: str) -> None:
     """TV-30 (MP-49): an idle ^C is answered `0D`; an Igor Pro procedure's `03 0D` gets `0D 0D`, the
     vendor-written driver's `03 0D 0A` `0D 0D 0D`."""
     host = connect(open_target)
@@ -64,7 +64,7 @@ def test_tv_30_idle_ctrl_c(open_target: OpenTarget, frame: str, reply: str) -> N
 
 
 @pytest.mark.control
-def test_tv_31_ctrl_c_halts_a_move(open_target: OpenTarget) -> None:
+def test_tv_031_ctrl_c_halts_a_move(open_target: OpenTarget) -> None:
     """TV-31 (MP-48, MP-46, MP-14): ^C at 1.000 s into a 5 s move: `3D` at once, the axes stop at
     X = 5000, `0D` at 1.150 s."""
     target, host, clock = frozen(open_target)
@@ -75,7 +75,7 @@ def test_tv_31_ctrl_c_halts_a_move(open_target: OpenTarget) -> None:
     host.exchange(GET_POSITION, HALTED)
 
 
-def test_tv_31_ctrl_c_halts_a_move_on_the_host_clock(open_target: OpenTarget) -> None:
+def test_tv_031_ctrl_c_halts_a_move_on_the_host_clock(open_target: OpenTarget) -> None:
     """TV-31 (MP-48, MP-46): `3D`, then `0D`; the axes stopped where the ^C found them."""
     host = connect(open_target, scale=4)
     done = start_long_move(host)
@@ -86,7 +86,7 @@ def test_tv_31_ctrl_c_halts_a_move_on_the_host_clock(open_target: OpenTarget) ->
 
 
 @pytest.mark.control
-def test_tv_32_ctrl_c_and_query(open_target: OpenTarget) -> None:
+def test_tv_032_ctrl_c_and_query(open_target: OpenTarget) -> None:
     """TV-32 (MP-48, MP-52): `03 63 0D` at 1.000 s: `3D`, the `c` answered at once with the halted
     position, so by 1.020 s exactly 14 bytes have come; the 15th, `0D`, at 1.150 s."""
     target, host, clock = frozen(open_target)
@@ -98,7 +98,7 @@ def test_tv_32_ctrl_c_and_query(open_target: OpenTarget) -> None:
     expect_at(host, clock, 1.15, CR)
 
 
-def test_tv_32_ctrl_c_and_query_on_the_host_clock(open_target: OpenTarget) -> None:
+def test_tv_032_ctrl_c_and_query_on_the_host_clock(open_target: OpenTarget) -> None:
     """TV-32 (MP-48, MP-52): `3D`, the 13 position bytes, then the move's `0D`."""
     host = connect(open_target, scale=4)
     done = start_long_move(host)
@@ -118,7 +118,7 @@ def test_tv_32_ctrl_c_and_query_on_the_host_clock(open_target: OpenTarget) -> No
     ],
     ids=["cr", "error8", "error8_4"],
 )
-def test_tv_33_query_interrupts_a_move(
+def test_tv_033_query_interrupts_a_move(
     open_target: OpenTarget, overrides: dict[str, Any] | None, answer: bytes, final: str
 ) -> None:
     """TV-33 (MP-51, MP-52, MP-53): `63 0D` at 1.000 s halts the move at X = 5000 and is answered
@@ -134,7 +134,7 @@ def test_tv_33_query_interrupts_a_move(
     host.exchange(GET_POSITION, HALTED)
 
 
-def test_tv_33_query_interrupts_a_move_on_the_host_clock(open_target: OpenTarget) -> None:
+def test_tv_033_query_interrupts_a_move_on_the_host_clock(open_target: OpenTarget) -> None:
     """TV-33 (MP-51, MP-52): a `c` during the move halts it and is answered before its `0D`."""
     host = connect(open_target, scale=4)
     done = start_long_move(host)
@@ -144,7 +144,7 @@ def test_tv_33_query_interrupts_a_move_on_the_host_clock(open_target: OpenTarget
 
 
 @pytest.mark.control
-def test_tv_34_second_move_is_held(open_target: OpenTarget) -> None:
+def test_tv_034_second_move_is_held(open_target: OpenTarget) -> None:
     """TV-34 (MP-51, MP-52): a second `m` (X = 0) at 1.000 s halts the first at 5000 (`0D` at
     1.150 s), then runs: 200 µm in 1.0 s, `0D` at 2.300 s."""
     target, host, clock = frozen(open_target)
@@ -159,7 +159,7 @@ def test_tv_34_second_move_is_held(open_target: OpenTarget) -> None:
 
 
 @pytest.mark.control
-def test_tv_35_every_ctrl_c_is_acknowledged(open_target: OpenTarget) -> None:
+def test_tv_035_every_ctrl_c_is_acknowledged(open_target: OpenTarget) -> None:
     """TV-35 (MP-48): ^C at 1.000 s and again at 1.050 s (STOPPING): `3D`, `3D`, and the end of
     STOPPING is unchanged: `0D` at 1.150 s."""
     target, host, clock = frozen(open_target)
@@ -178,7 +178,7 @@ def test_tv_35_every_ctrl_c_is_acknowledged(open_target: OpenTarget) -> None:
     [(0.201, CR + CR + FINAL_TEN_UM, None), (0.160, hx("3D") + FINAL_TEN_UM, 0.200)],
     ids=["after-final", "stopping"],
 )
-def test_tv_36_reply_order_depends_on_timing(
+def test_tv_036_reply_order_depends_on_timing(
     open_target: OpenTarget, at: float, answer: bytes, final_at: float | None
 ) -> None:
     """TV-36 (MP-49, MP-52): `03 63 0D` during the TV-18 move (final `0D` at 0.200 s). At 0.201 s
@@ -193,7 +193,7 @@ def test_tv_36_reply_order_depends_on_timing(
     host.quiet(0.05)
 
 
-def test_tv_36_reply_order_on_the_host_clock(open_target: OpenTarget) -> None:
+def test_tv_036_reply_order_on_the_host_clock(open_target: OpenTarget) -> None:
     """TV-36 (MP-49, MP-52): sent in the middle of STOPPING (0.05 ... 0.200 s), `03 63 0D` gives
     `3D`, the final position and the move's `0D`; sent after the move's `0D`, the ^C is idle:
     `0D`, then the position."""
@@ -210,7 +210,7 @@ def test_tv_36_reply_order_on_the_host_clock(open_target: OpenTarget) -> None:
     [(None, FINAL_TEN_UM), ({"knobs": {"terminators_interrupt_move": True}}, position(5, 5, 5))],
     ids=["default", "terminators_interrupt_move"],
 )
-def test_tv_37_lf_after_a_move(
+def test_tv_037_lf_after_a_move(
     open_target: OpenTarget, overrides: dict[str, Any] | None, answer: bytes
 ) -> None:
     """TV-37 (MP-50): the vendor-written driver's LF one character time after the move's CR does not
@@ -228,7 +228,7 @@ def test_tv_37_lf_after_a_move(
     [(None, 0.200 - CHAR), ({"knobs": {"terminators_interrupt_move": True}}, 0.150)],
     ids=["default", "terminators_interrupt_move"],
 )
-def test_tv_37_lf_reply_times(
+def test_tv_037_lf_reply_times(
     open_target: OpenTarget, overrides: dict[str, Any] | None, seconds: float
 ) -> None:
     """TV-37 (MP-50): the move's `0D` at 0.200 s after its CR, the LF's `0D` right behind it; with

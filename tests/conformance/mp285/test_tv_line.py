@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from tests.conformance.conftest import DaemonPool
 
 
-def test_tv_01_status_dump_a(open_target: OpenTarget) -> None:
+def test_tv_001_status_dump_a(open_target: OpenTarget) -> None:
     """TV-1 (MP-60, MP-65, MP-11): `73 0D` gives dump A of a real MP-285: VERSION 340, STEP_DIV and
     STEP_MUL 25/4, XSPEED 200 µm/s at low resolution, words least significant byte first."""
     host = connect(open_target)
@@ -45,7 +45,7 @@ def test_tv_01_status_dump_a(open_target: OpenTarget) -> None:
 
 
 @pytest.mark.timing
-def test_tv_01_status_reply_is_paced(open_target: OpenTarget) -> None:
+def test_tv_001_status_reply_is_paced(open_target: OpenTarget) -> None:
     """TV-1 (MP-3): one character per character time: the first byte completes one character time
     after the `s` frame, the 33rd 34.4 ms after the first byte started."""
     host = connect(open_target)
@@ -65,7 +65,7 @@ def test_tv_01_status_reply_is_paced(open_target: OpenTarget) -> None:
     ],
     ids=["mp285a-v302", "mp285a", "mp285a-qr"],
 )
-def test_tv_02_status_dump_b(open_target: OpenTarget, profile: str, expected: bytes) -> None:
+def test_tv_002_status_dump_b(open_target: OpenTarget, profile: str, expected: bytes) -> None:
     """TV-2 (MP-65, MP-63, MP-2): an MP-285A host with RTS/CTS; `mp285a-v302` and `mp285a` give the
     real dump B byte for byte (STEP fields 25/4, as units report), `mp285a-qr` differs only in
     STEP_DIV/STEP_MUL (the quick reference's 400/400, nm per 10 µsteps, §0.1)."""
@@ -76,7 +76,7 @@ def test_tv_02_status_dump_b(open_target: OpenTarget, profile: str, expected: by
 
 
 @pytest.mark.parametrize(("baud", "error"), [(19200, "34"), (4800, "31")])
-def test_tv_03_host_at_another_baud_gets_no_reply(open_target: OpenTarget, baud: int, error: str) -> None:
+def test_tv_003_host_at_another_baud_gets_no_reply(open_target: OpenTarget, baud: int, error: str) -> None:
     """TV-3 (MP-1, MP-6): at 19200 baud `63 0D` reaches the device as the single byte `91`, at 4800
     as `1E` (framing error), `66` (framing error), `80`: no CR, so no reply. A CR sent at the right
     baud then ends that bad frame, with '4' after the unknown command `91` (MP-21) or '1' after the
@@ -88,13 +88,13 @@ def test_tv_03_host_at_another_baud_gets_no_reply(open_target: OpenTarget, baud:
     host.exchange(CR, hx(f"{error} 0D"))
 
 
-def test_tv_03_two_stop_bits_corrupt_nothing(open_target: OpenTarget) -> None:
+def test_tv_003_two_stop_bits_corrupt_nothing(open_target: OpenTarget) -> None:
     """TV-3 (MP-6): only the first stop bit is checked, so a 9600 8N2 host gets normal replies."""
     host = connect(open_target, stopbits=serial.STOPBITS_TWO)
     host.exchange(GET_POSITION, ZEROS + CR)
 
 
-def test_tv_03_line_mismatch_ignore_passes_bytes(open_target: OpenTarget) -> None:
+def test_tv_003_line_mismatch_ignore_passes_bytes(open_target: OpenTarget) -> None:
     """TV-3 (MP-6): `line_mismatch: ignore` passes a 19200-baud host's bytes unchanged."""
     host = connect(open_target, overrides={"knobs": {"line_mismatch": "ignore"}}, baudrate=19200)
     host.exchange(GET_POSITION, ZEROS + CR)
@@ -117,7 +117,7 @@ def test_tv_03_line_mismatch_ignore_passes_bytes(open_target: OpenTarget) -> Non
     ],
     ids=["19200", "8N2"],
 )
-def test_tv_03_mismatch_is_logged_once(
+def test_tv_003_mismatch_is_logged_once(
     open_target: OpenTarget, daemon_pool: DaemonPool, settings: dict[str, object], line: str
 ) -> None:
     """TV-3 (MP-4, MP-5): one warning naming device, port, both settings and the knob in force; the
@@ -133,7 +133,7 @@ def test_tv_03_mismatch_is_logged_once(
 
 
 @pytest.mark.parametrize("frame", ["63 0D", "7A 63 0D"])
-def test_tv_04_parity_host_gets_a_frame_error(
+def test_tv_004_parity_host_gets_a_frame_error(
     open_target: OpenTarget, request: pytest.FixtureRequest, frame: str
 ) -> None:
     """TV-4 (MP-6, MP-24): an 8E1 host's `63` reaches the device with a framing error (its parity
@@ -162,7 +162,7 @@ def start_tv05_move(open_target: OpenTarget, rtscts: bool) -> Host:
 
 @pytest.mark.control
 @pytest.mark.parametrize(("interrupt", "replies"), [("03 63 0D", "3D 0D 30 0D"), ("03", "3D 0D")])
-def test_tv_05_usb_without_rtscts_loses_bytes_while_busy(
+def test_tv_005_usb_without_rtscts_loses_bytes_while_busy(
     open_target: OpenTarget, interrupt: str, replies: str
 ) -> None:
     """TV-5 (MP-7, MP-2): a USB host without RTS/CTS interrupts the move with `03 63 0D`: `3D` (the
@@ -175,7 +175,7 @@ def test_tv_05_usb_without_rtscts_loses_bytes_while_busy(
 
 
 @pytest.mark.control
-def test_tv_05_with_rtscts_nothing_is_lost(open_target: OpenTarget) -> None:
+def test_tv_005_with_rtscts_nothing_is_lost(open_target: OpenTarget) -> None:
     """TV-5 (MP-7): with RTS/CTS the same bytes behave as TV-32: `3D`, the position, `0D`."""
     host = start_tv05_move(open_target, rtscts=True)
     host.exchange(hx("03 63 0D"), hx("3D"))

@@ -31,7 +31,7 @@ MINUS_250 = hx("6D 06 FF FF FF 00 00 00 00 00 00 00 00 0D")
 FAR_X = hx("6D 80 1A 06 00 00 00 00 00 00 00 00 00 0D")
 
 
-def test_tv_18_ten_um_per_axis(open_target: OpenTarget) -> None:
+def test_tv_018_ten_um_per_axis(open_target: OpenTarget) -> None:
     """TV-18 (MP-43, MP-44, MP-47): +10 µm per axis answers `0D`; the axes are at (250, 250, 250)."""
     host = connect(open_target)
     host.exchange(TEN_UM, CR, within=0.2)
@@ -48,7 +48,7 @@ def test_tv_18_ten_um_per_axis(open_target: OpenTarget) -> None:
     ],
     ids=["simultaneous", "sequential", "accel"],
 )
-def test_tv_18_move_reply_time(
+def test_tv_018_move_reply_time(
     open_target: OpenTarget, overrides: dict[str, Any] | None, seconds: float
 ) -> None:
     """TV-18 (MP-43, MP-44, MP-45): the move's `0D` at 0.200 s, 0.300 s (axes one after another)
@@ -68,14 +68,14 @@ def tv19(host: Host) -> None:
     host.exchange(GET_POSITION, hx("06 FF FF FF 00 00 00 00 00 00 00 00 0D"))
 
 
-def test_tv_19_relative_and_absolute_modes(open_target: OpenTarget) -> None:
+def test_tv_019_relative_and_absolute_modes(open_target: OpenTarget) -> None:
     """TV-19 (MP-33, MP-35): in relative mode `m` values are displacements, in absolute mode
     targets; `c` reports the same position in both."""
     tv19(connect(open_target))
 
 
 @pytest.mark.timing
-def test_tv_19_reply_times(open_target: OpenTarget) -> None:
+def test_tv_019_reply_times(open_target: OpenTarget) -> None:
     """TV-19 (MP-43, MP-44): the relative move answers at 0.200 s, the absolute one to where the
     axes already are after the settle time alone, 0.150 s."""
     host = connect(open_target)
@@ -87,7 +87,7 @@ def test_tv_19_reply_times(open_target: OpenTarget) -> None:
     assert_at(host.expect(CR, within=0.15), done + 0.150 + CHAR)
 
 
-def test_tv_20_set_origin(open_target: OpenTarget) -> None:
+def test_tv_020_set_origin(open_target: OpenTarget) -> None:
     """TV-20 (MP-32): after TV-19, `6F 0D` answers `0D` and the position becomes (0, 0, 0)."""
     host = connect(open_target)
     tv19(host)
@@ -98,7 +98,7 @@ def test_tv_20_set_origin(open_target: OpenTarget) -> None:
     host.exchange(hx("6F 0D"), CR)
 
 
-def test_tv_21_target_beyond_travel_is_clamped(open_target: OpenTarget) -> None:
+def test_tv_021_target_beyond_travel_is_clamped(open_target: OpenTarget) -> None:
     """TV-21 (MP-36, MP-29): X = 400,000 stops at the travel limit, 312,500, and answers `0D`
     (after 62.65 s: on the emulator device time runs 200×)."""
     host = connect(open_target, scale=200)
@@ -107,7 +107,7 @@ def test_tv_21_target_beyond_travel_is_clamped(open_target: OpenTarget) -> None:
 
 
 @pytest.mark.control
-def test_tv_21_clamped_move_time(open_target: OpenTarget) -> None:
+def test_tv_021_clamped_move_time(open_target: OpenTarget) -> None:
     """TV-21 (MP-36, MP-43): 312,500 µsteps = 12,500 µm at 200 µm/s + 0.15 s: `0D` at 62.65 s."""
     target, host, clock = frozen(open_target)
     begin(target, host, clock, FAR_X)
@@ -115,7 +115,7 @@ def test_tv_21_clamped_move_time(open_target: OpenTarget) -> None:
     host.exchange(GET_POSITION, hx("B4 C4 04 00") + bytes(8) + CR)
 
 
-def test_tv_21_out_of_range_error4(open_target: OpenTarget) -> None:
+def test_tv_021_out_of_range_error4(open_target: OpenTarget) -> None:
     """TV-21 (MP-36): `out_of_range: error4` answers `34 0D` at once and nothing moves."""
     host = connect(open_target, overrides={"knobs": {"out_of_range": "error4"}})
     host.exchange(FAR_X, hx("34 0D"))
@@ -123,7 +123,7 @@ def test_tv_21_out_of_range_error4(open_target: OpenTarget) -> None:
 
 
 @pytest.mark.control
-def test_tv_22_mt800_translator(open_target: OpenTarget) -> None:
+def test_tv_022_mt800_translator(open_target: OpenTarget) -> None:
     """TV-22 (MP-28, MP-29, MP-63): on `mp285-mt800` X + 20,000 µsteps is 1000 µm (20 per µm):
     `0D` at 5.150 s; STEP_DIV/STEP_MUL are 20/5."""
     target, host, clock = frozen(open_target, "mp285-mt800")
@@ -133,7 +133,7 @@ def test_tv_22_mt800_translator(open_target: OpenTarget) -> None:
 
 
 @pytest.mark.control
-def test_tv_23_coarse_step_quantum(open_target: OpenTarget) -> None:
+def test_tv_023_coarse_step_quantum(open_target: OpenTarget) -> None:
     """TV-23 (MP-42): `coarse_step_quantum_usteps: 5` at low resolution: a move to X = 12 goes to
     10 (0.4 µm at 200 µm/s + 0.15 s: `0D` at 0.152 s)."""
     target, host, clock = frozen(open_target, overrides={"knobs": {"coarse_step_quantum_usteps": 5}})
@@ -162,7 +162,7 @@ def velocity_case(
     ("profile", "frame", "xspeed", "byte15"),
     [("mp285", "56 09 83 0D", "09 83", 0x7C), ("mp285a", "56 B8 0B 0D", "B8 0B", 0x78)],
 )
-def test_tv_24_velocity_word_in_status(
+def test_tv_024_velocity_word_in_status(
     open_target: OpenTarget, profile: str, frame: str, xspeed: str, byte15: int
 ) -> None:
     """TV-24 (MP-37, MP-61, MP-62): 777 µm/s high resolution: XSPEED `09 83`, STEP_MODE set (FLAGS_2
@@ -178,7 +178,7 @@ def test_tv_24_velocity_word_in_status(
     ],
     ids=["clamp", "error4"],
 )
-def test_tv_25_big_endian_word(
+def test_tv_025_big_endian_word(
     open_target: OpenTarget, overrides: dict[str, Any] | None, reply: str, xspeed: str, byte15: int
 ) -> None:
     """TV-25 (MP-41, MP-39): a CR LF host sending 1000 big-endian, `56 03 E8 0D 0A`: the device reads
@@ -187,7 +187,7 @@ def test_tv_25_big_endian_word(
     velocity_case(open_target, "56 03 E8 0D 0A", reply, xspeed, byte15, overrides=overrides)
 
 
-def test_tv_26_high_resolution_over_the_limit(open_target: OpenTarget) -> None:
+def test_tv_026_high_resolution_over_the_limit(open_target: OpenTarget) -> None:
     """TV-26 (MP-41, MP-39): bit 15 + 6000 is clamped to 1310 at high resolution: `1E 85`."""
     velocity_case(open_target, "56 70 97 0D", "0D", "1E 85", 0x7C)
 
@@ -195,7 +195,7 @@ def test_tv_26_high_resolution_over_the_limit(open_target: OpenTarget) -> None:
 @pytest.mark.parametrize(
     ("frame", "xspeed", "byte15"), [("56 E8 83 0D", "E8 83", 0x7C), ("56 E8 03 0D", "E8 03", 0x78)]
 )
-def test_tv_27_bit_15_taken_literally(open_target: OpenTarget, frame: str, xspeed: str, byte15: int) -> None:
+def test_tv_027_bit_15_taken_literally(open_target: OpenTarget, frame: str, xspeed: str, byte15: int) -> None:
     """TV-27 (MP-41): a host that sets bit 15 for "coarse 1000" gets high resolution at 1000 µm/s
     (`E8 83`); its "fine 1000" is low resolution (`E8 03`)."""
     velocity_case(open_target, frame, "0D", xspeed, byte15)
@@ -210,13 +210,13 @@ def test_tv_27_bit_15_taken_literally(open_target: OpenTarget, frame: str, xspee
     ],
     ids=["mp285-6000", "mp285a-6000", "cr-data-byte"],
 )
-def test_tv_28_low_resolution_limits(open_target: OpenTarget, profile: str, frame: str, xspeed: str) -> None:
+def test_tv_028_low_resolution_limits(open_target: OpenTarget, profile: str, frame: str, xspeed: str) -> None:
     """TV-28 (MP-38, MP-18): 6000 µm/s low is within the MP-285's 6550 limit and clamped to the
     MP-285A's 3000; 13 µm/s, whose low byte is `0D`, is data."""
     velocity_case(open_target, frame, "0D", xspeed, 0x78, profile)
 
 
-def test_tv_29_speed_zero(open_target: OpenTarget) -> None:
+def test_tv_029_speed_zero(open_target: OpenTarget) -> None:
     """TV-29 (MP-40): at speed 0 a move never ends on its own: no reply for 5 s (device time runs
     20× on the emulator), then ^C: `3D`, `0D`; nothing moved."""
     host = connect(open_target, scale=20)
@@ -228,7 +228,7 @@ def test_tv_29_speed_zero(open_target: OpenTarget) -> None:
 
 
 @pytest.mark.control
-def test_tv_29_speed_zero_interrupt_times(open_target: OpenTarget) -> None:
+def test_tv_029_speed_zero_interrupt_times(open_target: OpenTarget) -> None:
     """TV-29 (MP-40, MP-48): ^C at 5 s answers `3D` at once and `0D` at 5.15 s."""
     target, host, clock = frozen(open_target)
     host.exchange(hx("56 00 00 0D"), CR)

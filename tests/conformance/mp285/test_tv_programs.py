@@ -34,7 +34,7 @@ UPLOAD_1 = hx("02 D0 07 00 00 FA 00 00 00 00 00 00 00 06 FF FF FF") + bytes(16) 
 PAUSED_AT = hx("FA 00 00 00 00 00 00 00 06 FF FF FF 0D")
 
 
-def test_tv_38_reset_answers_nothing_and_restores_defaults(open_target: OpenTarget) -> None:
+def test_tv_038_reset_answers_nothing_and_restores_defaults(open_target: OpenTarget) -> None:
     """TV-38 (MP-15, MP-55, MP-57): after `V` 777 µm/s high and `b`, `72 0D` answers nothing for a
     second (device time runs 5× on the emulator); then the power-on `V` word is back (XSPEED
     `C8 00`, FLAGS_2 `78`) and moves are absolute again (the same `m` twice stays at X = 250)."""
@@ -57,7 +57,7 @@ def test_tv_38_reset_answers_nothing_and_restores_defaults(open_target: OpenTarg
     [(None, b""), ({"knobs": {"reset_emits_nul": True}}, b"\x00")],
     ids=["default", "nul"],
 )
-def test_tv_38_reset_deaf_time(
+def test_tv_038_reset_deaf_time(
     open_target: OpenTarget, overrides: dict[str, Any] | None, first: bytes
 ) -> None:
     """TV-38 (MP-56, MP-58): a `63 0D` arriving 0.10 s after the reset is lost without a reply, one
@@ -75,7 +75,7 @@ def test_tv_38_reset_deaf_time(
 
 
 @pytest.mark.control
-def test_tv_39_reset_during_a_move(open_target: OpenTarget) -> None:
+def test_tv_039_reset_during_a_move(open_target: OpenTarget) -> None:
     """TV-39 (MP-57): `72 0D` at 1.000 s into the TV-31 move halts it at X = 5000 (`0D` at 1.150 s),
     then takes effect: deaf until 1.350 s, and no byte but the move's `0D`."""
     target, host, clock = frozen(open_target)
@@ -101,7 +101,7 @@ def test_tv_39_reset_during_a_move(open_target: OpenTarget) -> None:
     ],
     ids=["stored", "tracks", "tracks-reversed"],
 )
-def test_tv_40_flags_bit_5(
+def test_tv_040_flags_bit_5(
     open_target: OpenTarget, overrides: dict[str, Any] | None, after_a: int, after_b: int
 ) -> None:
     """TV-40 (MP-64, MP-34): FLAGS bit 5 is the stored value and ignores `a`/`b`; with
@@ -121,7 +121,7 @@ def test_tv_40_flags_bit_5(
     ],
     ids=["relative", "follow_mode"],
 )
-def test_tv_41_program_round_trip(
+def test_tv_041_program_round_trip(
     open_target: OpenTarget, overrides: dict[str, Any] | None, second: bytes
 ) -> None:
     """TV-41 (MP-66, MP-16, MP-17, MP-72, MP-68, MP-70, MP-69): `d` stores a 16-byte move vector
@@ -145,7 +145,7 @@ def test_tv_41_program_round_trip(
     [(None, 0.200), ({"knobs": {"program_vectors": "follow_mode"}}, 0.150)],
     ids=["relative", "follow_mode"],
 )
-def test_tv_41_program_reply_times(
+def test_tv_041_program_reply_times(
     open_target: OpenTarget, overrides: dict[str, Any] | None, again: float
 ) -> None:
     """TV-41 (MP-68, MP-70): `k` answers at 0.200 s (the vector's move and settle), `e` at once, the
@@ -161,14 +161,14 @@ def test_tv_41_program_reply_times(
 
 
 @pytest.mark.parametrize("frame", ["6B 00 0D", "6B 0B 0D", "75 0B 0D", "64 01 00 0D"])
-def test_tv_42_bad_program_frames(open_target: OpenTarget, frame: str) -> None:
+def test_tv_042_bad_program_frames(open_target: OpenTarget, frame: str) -> None:
     """TV-42 (MP-67, MP-72): `k`/`u` of program 0 or 11, and a `d` of 0 vectors: `34 0D`."""
     host = connect(open_target)
     host.exchange(hx(frame), hx("34 0D"))
     host.quiet(0.05)
 
 
-def test_tv_42_download_checked_after_the_frame(open_target: OpenTarget) -> None:
+def test_tv_042_download_checked_after_the_frame(open_target: OpenTarget) -> None:
     """TV-42 (MP-67): `d` of program 11 is read whole (20 bytes) before `34 0D`; a vector whose
     descriptor is `00 00 07 D0` (not a move vector) is refused and nothing is stored: program 1
     keeps what it held."""
@@ -182,7 +182,7 @@ def test_tv_42_download_checked_after_the_frame(open_target: OpenTarget) -> None
     host.exchange(hx("75 01 0D"), UPLOAD_1)
 
 
-def test_tv_42_empty_slot(open_target: OpenTarget) -> None:
+def test_tv_042_empty_slot(open_target: OpenTarget) -> None:
     """TV-42 (MP-72): a never-downloaded program uploads as `00 0D` and executes as `0D`, nothing
     moving."""
     host = connect(open_target)
@@ -192,7 +192,7 @@ def test_tv_42_empty_slot(open_target: OpenTarget) -> None:
 
 
 @pytest.mark.control
-def test_tv_43_ctrl_c_abandons_a_running_program(open_target: OpenTarget) -> None:
+def test_tv_043_ctrl_c_abandons_a_running_program(open_target: OpenTarget) -> None:
     """TV-43 (MP-54): program 1's first vector is (+25,000, 0, 0); ^C at 1.000 s: `3D`, `0D` at
     1.150 s; the program is abandoned, so `e` answers at once. (A pause and a second move vector
     follow, so a program wrongly left paused would show: `e` would move X.)"""
@@ -208,7 +208,7 @@ def test_tv_43_ctrl_c_abandons_a_running_program(open_target: OpenTarget) -> Non
     host.exchange(GET_POSITION, position(5000))
 
 
-def test_tv_43_ctrl_c_abandons_a_paused_program(open_target: OpenTarget) -> None:
+def test_tv_043_ctrl_c_abandons_a_paused_program(open_target: OpenTarget) -> None:
     """TV-43 (MP-71): while TV-41's program is paused the controller is idle: `c` is answered, ^C
     abandons the program and answers `0D`, `e` then answers at once without moving (a move vector
     after the pause would otherwise run)."""
@@ -222,7 +222,7 @@ def test_tv_43_ctrl_c_abandons_a_paused_program(open_target: OpenTarget) -> None
     host.exchange(GET_POSITION, PAUSED_AT)
 
 
-def test_tv_44_programs_survive_reset(open_target: OpenTarget) -> None:
+def test_tv_044_programs_survive_reset(open_target: OpenTarget) -> None:
     """TV-44 (MP-73): after `d`, `72 0D` and 0.3 s, `u` gives the same 34 bytes."""
     host = connect(open_target)
     host.exchange(PROGRAM_1, CR)
@@ -240,7 +240,7 @@ def test_tv_44_programs_survive_reset(open_target: OpenTarget) -> None:
         ("always", UPLOAD_1, UPLOAD_1),
     ],
 )
-def test_tv_44_program_retention(
+def test_tv_044_program_retention(
     open_target: OpenTarget, retention: str, after_reset: bytes, after_power_cycle: bytes
 ) -> None:
     """TV-44 (MP-73, MP-76): programs survive `r` and are lost at a power cycle (1.1 s later `u`
@@ -257,7 +257,7 @@ def test_tv_44_program_retention(
 
 
 @pytest.mark.control
-def test_tv_45_display_refresh(open_target: OpenTarget) -> None:
+def test_tv_045_display_refresh(open_target: OpenTarget) -> None:
     """TV-45 (MP-74, MP-75): after the TV-18 move the display still shows the old coordinates; `n`
     refreshes them; an error reply shows on line 2."""
     host = connect(open_target)

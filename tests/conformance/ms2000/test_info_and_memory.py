@@ -110,7 +110,7 @@ def test_tv_exchanges(ms: Host, steps: Sequence[Step]) -> None:
 ORIGIN_UNCERTAINTY_COUNTS = 23
 
 
-def test_tv099_info(ms: Host) -> None:
+def test_tv_099_info(ms: Host) -> None:
     """TV-99 (MS-106): INFO X byte for byte. On a real port the two encoder-count fields may be off
     by the uncertainty of the restored origin; everything else must match."""
     reply = ms.reply(b"I X\r")

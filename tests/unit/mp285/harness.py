@@ -106,7 +106,7 @@ class Bench:
 
     def snapshot(self) -> dict[str, Any]:
         self.device.advance(self.now)
-        return self.device.snapshot()
+        return self.device.snapshot(self.now)
 
     # ---- the host loop ---------------------------------------------------------------------------
 

@@ -263,16 +263,17 @@ def test_parser_chunking_never_matters() -> None:
 
 
 def test_summaries() -> None:
-    """One-line traffic summaries for both directions."""
-    assert p.summarize_host(p.Move(1200, -40, 0).encode()) == "m X=1200 Y=-40 Z=0 (µsteps)"
-    assert p.summarize_host(b"s\rc\r") == "s; c"
-    assert p.summarize_host(b"\x03\r") == "^C; stray CR"
-    assert p.summarize_host(b"m\x01\x02") == "partial 'm' (3 of 14 bytes)"
-    assert p.summarize_host(b"d\x01") == "partial 'd' (2 bytes)"
-    assert p.summarize_host(b"zz") == "bad bytes (discarding until CR)"
-    assert p.summarize_host(b"z\r") == "CR ending a bad frame (error '4' owed)"
-    assert p.summarize_host(b"V\xc8\x00\r") == "V 200 µm/s low (word 00C8)"
-    assert p.summarize_host(b"") == "nothing"
+    """One-line traffic summaries: parser items, device bytes, replies naming their command."""
+    items = p.FrameParser().feed(p.Move(1200, -40, 0).encode() + b"\x03\rz\r")
+    assert [p.describe_item(item) for item in items] == [
+        "m X=1200 Y=-40 Z=0 (µsteps)",
+        "^C",
+        "stray CR",
+        "CR ending a bad frame (error '4' owed)",
+    ]
+    assert p.describe_item(p.FrameParser().feed(b"V\xc8\x00\r")[0]) == "V 200 µm/s low (word 00C8)"
+    assert p.summarize_device(b"\r", to="a") == "reply to a: CR (done)"
+    assert p.summarize_device(b"4\r", to="z") == "reply to z: error '4' bad command"
     assert p.summarize_device(p.encode_position(1, -2, 3)) == "reply: position X=1 Y=-2 Z=3 (µsteps)"
     assert p.summarize_device(b"4\r") == "error '4' bad command"
     assert p.summarize_device(b"<\r") == "error '<' move interrupted + bad command"

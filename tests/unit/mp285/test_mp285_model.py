@@ -97,20 +97,6 @@ def test_events() -> None:
     assert names == ["move_started", "move_ended", "crashed", "power_cycle", "powered_on"]
 
 
-def test_traffic_summaries() -> None:
-    """Host chunks are decoded by the codec; paced reply bytes are summarised with their last byte."""
-    bench = Bench()
-    device = bench.device
-    assert device.summarize("rx", b"c\r") == "c"
-    bench.write(b"c\rzz\r", at=T0)
-    bench.run(T0 + 0.1)
-    reply = encode_position(0, 0, 0)
-    assert [device.summarize("tx", bytes((b,))) for b in reply[:-1]] == [None] * 12
-    assert device.summarize("tx", reply[-1:]) == "reply: position X=0 Y=0 Z=0 (µsteps)"
-    assert device.summarize("tx", b"4\r") == "error '4' bad command"
-    assert device.summarize("tx", b"\xff") == "1 byte(s): FF"  # not what was sent (a port fault)
-
-
 # ---- §7: bytes during a move -------------------------------------------------------------------------
 
 

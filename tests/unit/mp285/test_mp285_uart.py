@@ -32,7 +32,7 @@ def test_mp6_examples(data: bytes, sender: Framing, receiver: Framing, expected:
     assert decoded(garble(data, sender, receiver)) == expected
 
 
-def test_tv4_parity_error_at_the_host() -> None:
+def test_tv_004_parity_error_at_the_host() -> None:
     """TV-4: the device's `31 0D` reaches an 8E1 host as 00 (framing error) and C3 (parity error)."""
     chars = garble(b"1\r", DEVICE, Framing(9600, parity="even"))
     assert [(c.value, c.framing_error, c.parity_error) for c in chars] == [

@@ -252,6 +252,8 @@ def test_ll_decoder_unknown_command_consumed_to_terminator_ms123() -> None:
 
 
 def test_summaries() -> None:
-    assert p.summarize("rx", b"M X=1000\r") == "rx M X=1000\\r [MOVE]"
-    assert p.summarize("tx", b":A\r\n") == "tx :A\\r\\n"
-    assert p.summarize("rx", b"\x18\x61\x03\x3a") == "rx binary 18 61 03 3a"
+    assert p.summarize_line(b"M X=1000") == "M X=1000 [MOVE]"
+    assert p.summarize_line(b"  ") == "blank line"
+    assert p.summarize_line(b"FOO") == "FOO [?]"
+    assert p.shown(b":A\r\n") == ":A\\r\\n"
+    assert p.shown(b"\x18\x61\x03\x3a") == "binary 18 61 03 3a"

@@ -33,23 +33,23 @@ INFO_X = [
 ]
 
 
-def test_tv93_build_ms101(ms: Harness) -> None:
+def test_tv_093_build_ms101(ms: Harness) -> None:
     assert ms.cmd("BU") == b"STD_XYZ\r\n"
 
 
-def test_tv94_build_modules_ms102_ms15(ms: Harness) -> None:
+def test_tv_094_build_modules_ms102_ms15(ms: Harness) -> None:
     assert ms.cmd("BU X") == (
         b"STD_XYZ\rMotor Axes: X Y Z\rCMDs: XYZFTR\rBootLdr V:1\rHdwr REV.E\r"
         b"LL COMMANDS\rRING BUFFER 50\rINO_INT\rLED DIMMER\r\n"
     )
 
 
-def test_tv95_ring_buffer_line_without_size_ms102(make: type[Harness]) -> None:
+def test_tv_095_ring_buffer_line_without_size_ms102(make: type[Harness]) -> None:
     h = make(overrides={"knobs": {"bu_x_ring_buffer_size": False}})
     assert b"\rRING BUFFER\rINO_INT\r" in h.cmd("BU X")
 
 
-def test_tv96_user_string_ms103(ms: Harness) -> None:
+def test_tv_096_user_string_ms103(ms: Harness) -> None:
     assert ms.cmd("BU Y-") == ACK
     assert ms.cmd("BU Y=97") == ACK
     assert ms.cmd("BU Y=98") == ACK
@@ -62,7 +62,7 @@ def test_tv96_user_string_ms103(ms: Harness) -> None:
     assert ms.cmd("BU Y?") == b"\r\n"
 
 
-def test_tv97_volatile_counter_ms104_ms34(ms: Harness) -> None:
+def test_tv_097_volatile_counter_ms104_ms34(ms: Harness) -> None:
     assert ms.cmd("BU Z?") == b":A 0\r\n"
     assert ms.cmd("BU Z-") == ACK
     assert ms.cmd("BU Z?") == b":A 65535\r\n"
@@ -71,15 +71,15 @@ def test_tv97_volatile_counter_ms104_ms34(ms: Harness) -> None:
     assert ms.cmd("BU Z=70000") == b":N-4\r\n"
 
 
-def test_tv98_who_ms105(ms: Harness) -> None:
+def test_tv_098_who_ms105(ms: Harness) -> None:
     assert ms.cmd("N") == b":A ASI-MS2000-XYBR-Zs-USB\r\n"
 
 
-def test_tv99_info_layout_ms106_ms15(ms: Harness) -> None:
+def test_tv_099_info_layout_ms106_ms15(ms: Harness) -> None:
     assert ms.cmd("I X") == "\r".join(INFO_X).encode() + b"\r\n"
 
 
-def test_tv100_info_pc_tag_fixed_ms106(make: type[Harness]) -> None:
+def test_tv_100_info_pc_tag_fixed_ms106(make: type[Harness]) -> None:
     reply = make(overrides={"knobs": {"info_fix_pc_tag": True}}).cmd("I X").split(b"\r")
     assert reply[8] == b"Finish Error :  0.000022 (mm)[PC]enc_finsh_err:         1"
 
@@ -90,7 +90,7 @@ def test_info_two_axes_separated_by_empty_line_ms106(ms: Harness) -> None:
     assert lines[0].startswith("Axis Name    :  X") and lines[22].startswith("Axis Name    :  Y")
 
 
-def test_tv101_info_absent_axis_silent_ms107_ms18(make: type[Harness]) -> None:
+def test_tv_101_info_absent_axis_silent_ms107_ms18(make: type[Harness]) -> None:
     h = make("ms2000-xy")
     assert h.cmd("INFO X").startswith(b"Axis Name    :  X")
     assert h.cmd("INFO Z") == b""
@@ -99,11 +99,11 @@ def test_tv101_info_absent_axis_silent_ms107_ms18(make: type[Harness]) -> None:
     assert h.cmd("/") == b"N\r\n"
 
 
-def test_tv102_info_absent_axis_error_ms107(make: type[Harness]) -> None:
+def test_tv_102_info_absent_axis_error_ms107(make: type[Harness]) -> None:
     assert make("ms2000-xy", {"knobs": {"info_absent_axis": "error"}}).cmd("INFO Z") == b":N-2\r\n"
 
 
-def test_tv103_error_log_ms108_ms41(ms: Harness) -> None:
+def test_tv_103_error_log_ms108_ms41(ms: Harness) -> None:
     assert ms.cmd("DU Y") == b":A\r\n"
     ms.input("log_error", code=87)
     ms.input("log_error", code=85)
@@ -141,13 +141,13 @@ def test_error_log_keeps_64_entries_ms41(ms: Harness) -> None:
     assert ms.get("error_log")[0] == 69
 
 
-def test_tv104_saveset_letters_ms110_ms31(ms: Harness) -> None:
+def test_tv_104_saveset_letters_ms110_ms31(ms: Harness) -> None:
     assert ms.cmd("SS Z") == ACK
     assert ms.cmd("SS Q") == b":N-2\r\n"
     assert ms.cmd("SS") == b":N-3\r\n"
 
 
-def test_tv113_lcd_text_ms116(ms: Harness) -> None:
+def test_tv_113_lcd_text_ms116(ms: Harness) -> None:
     ms.input("dip", sw2="down")
     assert ms.get("lcd")[1] == "USB-9.2k"
     assert ms.cmd('LCD "hello"') == ACK
@@ -165,7 +165,7 @@ def test_lcd_module_status_line(ms: Harness) -> None:
     assert all(len(line) <= 20 for line in (top, bottom))
 
 
-def test_tv115_commands_of_absent_modules_ms118(ms: Harness) -> None:
+def test_tv_115_commands_of_absent_modules_ms118(ms: Harness) -> None:
     assert ms.cmd("AR") == b":N-1\r\n"
     assert ms.cmd("CCB Z=1") == b":N-1\r\n"
     assert ms.cmd("WRDAC X=1") == b":N-1\r\n"

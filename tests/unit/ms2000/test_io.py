@@ -10,7 +10,7 @@ from tests.unit.ms2000.conftest import Harness
 ACK = b":A\r\n"
 
 
-def test_tv62_status_reads_ms81_ms79_ms35(ms: Harness) -> None:
+def test_tv_062_status_reads_ms81_ms79_ms35(ms: Harness) -> None:
     assert ms.cmd("RS X") == b":A 10\r\n"
     assert ms.cmd("RS X Y") == b":A 10 10\r\n"
     assert ms.cmd("RS X?") == b":A N\r\n"
@@ -18,16 +18,16 @@ def test_tv62_status_reads_ms81_ms79_ms35(ms: Harness) -> None:
     assert ms.cmd("RS X+") == b":A  \r\n"
 
 
-def test_tv63_raw_status_byte_ms82(ms: Harness) -> None:
+def test_tv_063_raw_status_byte_ms82(ms: Harness) -> None:
     assert ms.cmd("RB X") == b":A\x0a\r\n"
     assert ms.cmd("RB Y X") == b":A\x0a\x0a\r\n"
 
 
-def test_tv64_raw_status_space_ms82(make: type[Harness]) -> None:
+def test_tv_064_raw_status_space_ms82(make: type[Harness]) -> None:
     assert make(overrides={"knobs": {"rb_space_after_ack": True}}).cmd("RB X") == b":A \x0a\r\n"
 
 
-def test_tv70_joystick_is_not_busy_ms83_ms117(ms: Harness) -> None:
+def test_tv_070_joystick_is_not_busy_ms83_ms117(ms: Harness) -> None:
     ms.input("joystick", x=1.0, y=0)
     assert ms.cmd("/") == b"N\r\n"
     assert ms.cmd("RA X Y") == b":A 255 128\r\n"
@@ -58,14 +58,14 @@ def test_joystick_dead_band_and_dip_inversion_ms83(ms: Harness) -> None:
     assert int(ms.cmd("W X")[3:]) < 0
 
 
-def test_tv71_wheel_ms84(ms: Harness) -> None:
+def test_tv_071_wheel_ms84(ms: Harness) -> None:
     ms.input("wheel", counts=100)
     ms.wait(0.5)
     assert ms.cmd("W Z") == b":A 500\r\n"
     assert ms.cmd("/") == b"N\r\n"
 
 
-def test_tv72_zero_button_and_flag_byte_ms85_ms86(ms: Harness) -> None:
+def test_tv_072_zero_button_and_flag_byte_ms85_ms86(ms: Harness) -> None:
     ms.cmd("M X=1000")
     ms.idle()
     ms.input("button", name="zero", ms=200)
@@ -75,7 +75,7 @@ def test_tv72_zero_button_and_flag_byte_ms85_ms86(ms: Harness) -> None:
     assert ms.cmd("EXTRA M?") == b":A 0\r\n"
 
 
-def test_tv73_disabled_button_ms86(ms: Harness) -> None:
+def test_tv_073_disabled_button_ms86(ms: Harness) -> None:
     ms.cmd("M X=1000")
     ms.idle()
     assert ms.cmd("BE X?") == b":A X=31\r\n"
@@ -85,7 +85,7 @@ def test_tv73_disabled_button_ms86(ms: Harness) -> None:
     assert ms.cmd("W X") == b":A 1000\r\n"
 
 
-def test_tv74_flag_byte_runs_presses_ms86_ms85(ms: Harness) -> None:
+def test_tv_074_flag_byte_runs_presses_ms86_ms85(ms: Harness) -> None:
     ms.cmd("M X=1000")
     ms.idle()
     assert ms.cmd("EXTRA M=4") == ACK
@@ -94,7 +94,7 @@ def test_tv74_flag_byte_runs_presses_ms86_ms85(ms: Harness) -> None:
     assert ms.cmd("EXTRA M?") == b":A 4\r\n"
 
 
-def test_tv75_joystick_speed_toggle_char_ms85_ms81(ms: Harness) -> None:
+def test_tv_075_joystick_speed_toggle_char_ms85_ms81(ms: Harness) -> None:
     ms.input("button", name="joystick", ms=200)
     ms.wait(0.3)
     assert ms.cmd("RS X-") == b":A s\r\n"
@@ -124,7 +124,7 @@ def test_button_functions_and_assignment_ms86(ms: Harness) -> None:
     assert ms.cmd("W X") == b":A 1000\r\n"
 
 
-def test_tv76_ttl_settings_and_toggle_mode_ms89_ms90(ms: Harness) -> None:
+def test_tv_076_ttl_settings_and_toggle_mode_ms89_ms90(ms: Harness) -> None:
     assert ms.cmd("TTL X? Y? Z? F?") == b":A X=0 Y=0 Z=0 F=1\r\n"
     assert ms.cmd("TTL X=10") == ACK
     assert ms.cmd("TTL X?") == b":A X=10\r\n"
@@ -132,13 +132,13 @@ def test_tv76_ttl_settings_and_toggle_mode_ms89_ms90(ms: Harness) -> None:
     assert ms.get("ttl_out0") == 1
 
 
-def test_tv77_modes_of_absent_modules_ms90_ms118(ms: Harness) -> None:
+def test_tv_077_modes_of_absent_modules_ms90_ms118(ms: Harness) -> None:
     assert ms.cmd("TTL X=7") == b":N-4\r\n"
     assert ms.cmd("TTL X=11") == b":N-4\r\n"
     assert ms.cmd("TTL X=3") == b":N-4\r\n"
 
 
-def test_tv78_end_of_move_pulse_ms91_ms93(ms: Harness) -> None:
+def test_tv_078_end_of_move_pulse_ms91_ms93(ms: Harness) -> None:
     assert ms.cmd("TTL Y=2") == ACK
     assert ms.cmd("RT Y=5") == ACK
     ms.cmd("M X=1000")
@@ -151,7 +151,7 @@ def test_tv78_end_of_move_pulse_ms91_ms93(ms: Harness) -> None:
     assert rise["t"] == landed
 
 
-def test_tv79_out_modes_and_polarity_ms91(ms: Harness) -> None:
+def test_tv_079_out_modes_and_polarity_ms91(ms: Harness) -> None:
     assert ms.cmd("TTL Y=3") == b":N-4\r\n"
     assert ms.cmd("TTL F=-1") == ACK
     assert ms.get("ttl_out0") == 1
@@ -160,13 +160,13 @@ def test_tv79_out_modes_and_polarity_ms91(ms: Harness) -> None:
     assert ms.get("ttl_out0") == 1
 
 
-def test_tv80_bare_ttl_reads_in0_inverted_ms92(ms: Harness) -> None:
+def test_tv_080_bare_ttl_reads_in0_inverted_ms92(ms: Harness) -> None:
     assert ms.cmd("TTL") == b":A 1\r\n"
     ms.input("ttl_in0", level=1)
     assert ms.cmd("TTL") == b":A 0\r\n"
 
 
-def test_tv81_rtime_ms93(ms: Harness) -> None:
+def test_tv_081_rtime_ms93(ms: Harness) -> None:
     assert ms.cmd("RT Y?") == b":A Y=10.000000\r\n"
     assert ms.cmd("RT X=10") == b":N-4\r\n"
     assert ms.cmd("RT X?") == b":A X=200.000000\r\n"
@@ -178,7 +178,7 @@ def _pulse_and_read_z(ms: Harness) -> bytes:
     return ms.cmd("W Z")
 
 
-def test_tv82_z_stack_sawtooth_ms94_ms90(ms: Harness) -> None:
+def test_tv_082_z_stack_sawtooth_ms94_ms90(ms: Harness) -> None:
     assert ms.cmd("ZS X=10 Y=3 Z=0 F=500") == ACK
     assert ms.cmd("TTL X=4") == ACK
     assert [_pulse_and_read_z(ms) for _ in range(4)] == [
@@ -189,7 +189,7 @@ def test_tv82_z_stack_sawtooth_ms94_ms90(ms: Harness) -> None:
     ]
 
 
-def test_tv83_z_stack_timeout_restarts_ms94(ms: Harness) -> None:
+def test_tv_083_z_stack_timeout_restarts_ms94(ms: Harness) -> None:
     ms.cmd("ZS X=10 Y=3 Z=0 F=500")
     ms.cmd("TTL X=4")
     _pulse_and_read_z(ms)
@@ -207,7 +207,7 @@ def test_z_stack_triangle_ms94(ms: Harness) -> None:
     assert ms.cmd("ZS X? Y? Z? F?") == b":A X=10.000000 Y=2 Z=1 F=500\r\n"
 
 
-def test_tv84_repeat_relative_move_ms90(ms: Harness) -> None:
+def test_tv_084_repeat_relative_move_ms90(ms: Harness) -> None:
     ms.cmd("R X=100")
     ms.idle()
     assert ms.cmd("TTL X=2") == ACK
@@ -216,7 +216,7 @@ def test_tv84_repeat_relative_move_ms90(ms: Harness) -> None:
     assert ms.cmd("W X") == b":A 200\r\n"
 
 
-def test_tv85_position_reports_ms90_ms18(ms: Harness) -> None:
+def test_tv_085_position_reports_ms90_ms18(ms: Harness) -> None:
     assert ms.cmd("TTL X=5") == ACK
     assert ms.cmd("RT X=100") == ACK
     ms.input("ttl_in0", pulse_ms=1)
@@ -234,7 +234,7 @@ def test_ttl_inputs_disabled_by_button_enable_ms86(ms: Harness) -> None:
     assert ms.get("ttl_out0") == 0
 
 
-def test_tv86_ensync_ms95(ms: Harness) -> None:
+def test_tv_086_ensync_ms95(ms: Harness) -> None:
     assert ms.cmd("ES X=0.5") == ACK
     assert ms.get("ensync_out") == 0
     ms.cmd("M X=10000")
@@ -247,19 +247,19 @@ def test_tv86_ensync_ms95(ms: Harness) -> None:
     assert ms.get("ensync_out") == 0
 
 
-def test_tv87_move_done_notice_ms96_ms18(ms: Harness) -> None:
+def test_tv_087_move_done_notice_ms96_ms18(ms: Harness) -> None:
     assert ms.cmd("VB X=1") == ACK
     assert ms.cmd("M X=100") == ACK
     ms.idle()
     assert ms.output() == b"N\r\n"
 
 
-def test_tv88_move_reply_lists_targets_ms96(ms: Harness) -> None:
+def test_tv_088_move_reply_lists_targets_ms96(ms: Harness) -> None:
     assert ms.cmd("VB X=16") == ACK
     assert ms.cmd("M X=1000 Y=-505") == b":A 1000 -505\r\n"
 
 
-def test_tv89_in1_edges_ms96(ms: Harness) -> None:
+def test_tv_089_in1_edges_ms96(ms: Harness) -> None:
     assert ms.cmd("VB X=4") == ACK
     ms.input("ttl_in1", level=1)
     assert ms.output() == b"H\r\n"
@@ -277,7 +277,7 @@ def test_vb_positions_after_move_and_button_notice_ms96(ms: Harness) -> None:
     assert ms.output() == b"P\r\n"
 
 
-def test_tv114_adc_reads_ms117(ms: Harness) -> None:
+def test_tv_114_adc_reads_ms117(ms: Harness) -> None:
     assert ms.cmd("RA X Y") == b":A 128 128\r\n"
     assert ms.cmd("RA T") == b":N-2\r\n"
     assert ms.cmd("RA Z F") == b":A 0 0\r\n"

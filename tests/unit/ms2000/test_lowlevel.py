@@ -15,17 +15,17 @@ def low(ms: Harness) -> Harness:
     return ms
 
 
-def test_tv122_position_read_ms119_ms120_ms121(low: Harness) -> None:
+def test_tv_122_position_read_ms119_ms120_ms121(low: Harness) -> None:
     assert low.send(b"\x18\x61\x03\x3a") == b"\xc7\xcf\xff"
 
 
-def test_tv123_busy_status_position_and_status_ms121_ms122(low: Harness) -> None:
+def test_tv_123_busy_status_position_and_status_ms121_ms122(low: Harness) -> None:
     assert low.send(b"\x18\x3f\x00\x3a") == b"b"
     assert low.send(b"\x18\x7e\x01\x3a") == b"\x0a"
     assert low.send(b"\x18\x6c\x03\x3a") == b"\xc7\xcf\xff\x0a"
 
 
-def test_tv124_to_tv126_moves_increment_and_return_ms121_ms120_ms123_ms124_ms119(low: Harness) -> None:
+def test_tv_124_to_tv126_moves_increment_and_return_ms121_ms120_ms123_ms124_ms119(low: Harness) -> None:
     assert low.send(b"\x18\x54\x03\xa0\x86\x01\x3a") == b""
     assert low.send(b"\x18\x3f\x00\x3a") == b"B"
     low.wait(3.0)
@@ -64,7 +64,7 @@ def test_low_level_status_bit1_always_set_ms122(low: Harness) -> None:
     assert low.send(b"\xff\x42\x18\x7e\x01\x3a") == b"\x0a"
 
 
-def test_tv127_where_resolution_sequences_ms119(ms: Harness) -> None:
+def test_tv_127_where_resolution_sequences_ms119(ms: Harness) -> None:
     ms.cmd("H X=-12345")
     assert ms.send(b"\xff\x48") == b""
     assert ms.cmd("W X") == b":A -12345.0\r\n"
@@ -72,7 +72,7 @@ def test_tv127_where_resolution_sequences_ms119(ms: Harness) -> None:
     assert ms.cmd("W X") == b":A -12345\r\n"
 
 
-def test_tv128_without_ll_module_ff42_discarded_ms119(make: type[Harness]) -> None:
+def test_tv_128_without_ll_module_ff42_discarded_ms119(make: type[Harness]) -> None:
     h = make(overrides={"modules": ["RING BUFFER", "INO_INT", "LED DIMMER"]})
     assert h.send(b"\xff\x42V\r") == b":A Version: USB-9.2k \r\n"
 

@@ -12,9 +12,9 @@ import pytest
 
 from emulator import registry
 from emulator.devices.ms2000.calls import Call, Param, Reply, run_settings, within
-from emulator.devices.ms2000.config import DEFAULT_MODULES, build_schema
 from emulator.devices.ms2000.modules import MODULES, Handler, Module
 from emulator.devices.ms2000.modules.host import ModuleHost
+from emulator.devices.ms2000.schema import DEFAULT_MODULES, build_schema
 from emulator.profile import ProfileError, load_profile
 from emulator.schema import Field, Int
 from protocols.ms2000 import Fmt, Shape
@@ -118,7 +118,7 @@ def test_module_input_observable_event_and_lcd_segment(probed: Harness) -> None:
     assert [e["kicks"] for e in probed.take_events("probe_kicked")] == [6]
     assert probed.get("lcd")[1].split()[:3] == ["RB", "0/0", "L"]
     assert "P6" in probed.get("lcd")[1].split()
-    assert "probe" in probed.dev.snapshot()
+    assert "probe" in probed.dev.snapshot(probed.t)
 
 
 def test_module_setting_saved_by_ss_z_and_state_reset_ms111_ms112(probed: Harness) -> None:

@@ -5,9 +5,10 @@ from __future__ import annotations
 
 import pytest
 
-from emulator.devices.ms2000.config import SCHEMA
 from emulator.devices.ms2000.modules import MODULES, Module
+from emulator.devices.ms2000.schema import SCHEMA
 from emulator.profile import ProfileError
+from emulator.schema import Section
 from tests.unit.ms2000.conftest import Harness
 
 ACK = b":A\r\n"
@@ -22,12 +23,12 @@ def loaded(ms: Harness) -> Harness:
     return ms
 
 
-def test_tv139_load_and_read_ms_rb_2_3_4(loaded: Harness) -> None:
+def test_tv_139_load_and_read_ms_rb_2_3_4(loaded: Harness) -> None:
     assert loaded.cmd("RM X?") == b":A X=2\r\n"
     assert loaded.cmd("LD X? Y?") == b":A X=1000 Y=2000\r\n"
 
 
-def test_tv140_bare_rm_steps_and_wraps_ms_rb_5(loaded: Harness) -> None:
+def test_tv_140_bare_rm_steps_and_wraps_ms_rb_5(loaded: Harness) -> None:
     assert loaded.cmd("RM") == ACK
     loaded.idle()
     assert loaded.cmd("W X Y") == b":A 1000 2000\r\n"
@@ -40,7 +41,7 @@ def test_tv140_bare_rm_steps_and_wraps_ms_rb_5(loaded: Harness) -> None:
     assert loaded.cmd("W X Y") == b":A 1000 2000\r\n"
 
 
-def test_tv141_ranges_and_autoplay_flag_ms_rb_4_5(loaded: Harness) -> None:
+def test_tv_141_ranges_and_autoplay_flag_ms_rb_4_5(loaded: Harness) -> None:
     assert loaded.cmd("RM Z=5") == b":N-4\r\n"
     assert loaded.cmd("RM F=0") == b":N-4\r\n"
     assert loaded.cmd("RM Y?") == b":A Y=3\r\n"
@@ -67,7 +68,7 @@ def test_autoplay_once_visits_to_last_slot_ms_rb_5(loaded: Harness) -> None:
     assert loaded.cmd("W X") == b":A 5000\r\n"
 
 
-def test_tv142_capacity_ms_rb_1_ms_rb_2(ms: Harness) -> None:
+def test_tv_142_capacity_ms_rb_1_ms_rb_2(ms: Harness) -> None:
     ms.cmd("RM X=0")
     for _ in range(50):
         assert ms.cmd("LD X=1") == ACK
@@ -75,7 +76,7 @@ def test_tv142_capacity_ms_rb_1_ms_rb_2(ms: Harness) -> None:
     assert ms.cmd("RM X?") == b":A X=50\r\n"
 
 
-def test_tv143_load_current_position_ms_rb_2(ms: Harness) -> None:
+def test_tv_143_load_current_position_ms_rb_2(ms: Harness) -> None:
     ms.cmd("M X=1000")
     ms.idle()
     ms.cmd("RM X=0")
@@ -83,7 +84,7 @@ def test_tv143_load_current_position_ms_rb_2(ms: Harness) -> None:
     assert ms.cmd("LD X? Y?") == b":A X=1000 Y=0\r\n"
 
 
-def test_tv144_buttons_store_and_clear_ms_rb_6(ms: Harness) -> None:
+def test_tv_144_buttons_store_and_clear_ms_rb_6(ms: Harness) -> None:
     ms.cmd("RM X=0")
     ms.input("button", name="joystick", ms=2000)
     ms.wait(2.1)
@@ -102,7 +103,7 @@ def test_at_button_is_next_trigger_ms_rb_5(loaded: Harness) -> None:
     assert loaded.cmd("RM X?") == b":A X=0\r\n"
 
 
-def test_tv145_micro_manager_z_sequence_ms_rb_7_ms_rb_5_ms90(ms: Harness) -> None:
+def test_tv_145_micro_manager_z_sequence_ms_rb_7_ms_rb_5_ms90(ms: Harness) -> None:
     for command in ("RM X=0", "LD Z=100", "LD Z=200", "RM Y=4 Z=0", "TTL X=1"):
         assert ms.cmd(command) == ACK, command
     got = []
@@ -127,20 +128,20 @@ def test_ring_buffer_observable_and_lcd(loaded: Harness) -> None:
     assert loaded.get("lcd")[1].startswith("RB 0/2")
 
 
-def test_tv16_ttl_trailing_value_sets_led_ms24_ms_led_3_ms_led_2(ms: Harness) -> None:
+def test_tv_016_ttl_trailing_value_sets_led_ms24_ms_led_3_ms_led_2(ms: Harness) -> None:
     assert ms.cmd("TTL Y=9 55") == ACK
     assert ms.cmd("TTL Y?") == b":A Y=9\r\n"
     assert ms.cmd("LED X?") == b"X=55 :A\r\n"
     assert ms.get("ttl_out0_pwm") == 55
 
 
-def test_tv17_trailing_value_ignored_ms_led_3(make: type[Harness]) -> None:
+def test_tv_017_trailing_value_ignored_ms_led_3(make: type[Harness]) -> None:
     h = make(overrides={"knobs": {"ttl_pwm_trailing_value": "ignore"}})
     assert h.cmd("TTL Y=9 55") == ACK
     assert h.cmd("LED X?") == b"X=0 :A\r\n"
 
 
-def test_tv184_led_dimmer_ms_led_1_ms_led_2(ms: Harness) -> None:
+def test_tv_184_led_dimmer_ms_led_1_ms_led_2(ms: Harness) -> None:
     assert ms.cmd("LED X=10") == ACK
     assert ms.cmd("LED X? Y?") == b"X=10 Y=0 :A\r\n"
     assert ms.get("ttl_out0_pwm") == 0
@@ -167,9 +168,8 @@ def test_trailing_value_out_of_range_ignored_ms_led_3(ms: Harness) -> None:
 
 def test_plugins_registered_and_schema_fields() -> None:
     assert {"RING BUFFER", "LED DIMMER", "INO_INT"} <= set(MODULES)
-    assert SCHEMA.field_named("ring_buffer_size") is not None
-    knobs = SCHEMA.field_named("knobs").type
-    assert knobs.field_named("ttl_pwm_trailing_value") is not None
+    config = Section(SCHEMA).check({}, ())
+    assert (config.ring_buffer_size, config.knobs.ttl_pwm_trailing_value) == (50, "apply")
 
 
 def test_unknown_module_in_profile_is_refused() -> None:

@@ -28,7 +28,7 @@ def stored(tmp_path: Path) -> Harness:
     return Harness(state_dir=tmp_path)
 
 
-def test_tv105_saved_settings_survive_restart_ms111(stored: Harness) -> None:
+def test_tv_105_saved_settings_survive_restart_ms111(stored: Harness) -> None:
     assert stored.cmd("S X=3.3") == ACK
     assert stored.cmd("SS Z") == ACK
     stored.restart()
@@ -38,7 +38,7 @@ def test_tv105_saved_settings_survive_restart_ms111(stored: Harness) -> None:
     assert stored.cmd("S Y?") == b":A Y=5.145600\r\n"
 
 
-def test_tv105_without_state_dir_power_cycle_still_uses_flash_ms111(ms: Harness) -> None:
+def test_tv_105_without_state_dir_power_cycle_still_uses_flash_ms111(ms: Harness) -> None:
     ms.cmd("S X=3.3")
     ms.cmd("SS Z")
     ms.cmd("S X=1")
@@ -53,13 +53,13 @@ def test_nothing_persists_without_state_dir(ms: Harness) -> None:
     assert ms.cmd("S X?") == b":A X=5.145600\r\n"
 
 
-def test_tv106_soft_limits_remembered_automatically_ms111(ms: Harness) -> None:
+def test_tv_106_soft_limits_remembered_automatically_ms111(ms: Harness) -> None:
     assert ms.cmd("SL X=-50") == ACK
     ms.input("power_cycle")
     assert ms.cmd("SL X?") == b":A X=-50.000\r\n"
 
 
-def test_tv107_factory_reset_scheduled_and_cancelled_ms110_ms112(stored: Harness) -> None:
+def test_tv_107_factory_reset_scheduled_and_cancelled_ms110_ms112(stored: Harness) -> None:
     stored.cmd("S X=3.3")
     stored.cmd("SS Z")
     assert stored.cmd("SS X") == ACK
@@ -75,7 +75,7 @@ def test_tv107_factory_reset_scheduled_and_cancelled_ms110_ms112(stored: Harness
     assert stored.cmd("S X?") == b":A X=3.300000\r\n"
 
 
-def test_tv108_reset_zeroes_positions_ms112(ms: Harness) -> None:
+def test_tv_108_reset_zeroes_positions_ms112(ms: Harness) -> None:
     ms.cmd("M X=1000")
     ms.idle()
     ms.cmd("BU Z+")
@@ -95,7 +95,7 @@ def test_reset_restores_saved_settings_keeps_limits_in_place_ms112(ms: Harness) 
     assert ms.cmd("SU X?") == b":A X=109.000\r\n"
 
 
-def test_tv109_positions_saved_at_power_off_unless_inhibited_ms113_ms112(ms: Harness) -> None:
+def test_tv_109_positions_saved_at_power_off_unless_inhibited_ms113_ms112(ms: Harness) -> None:
     ms.cmd("M X=1000")
     ms.idle()
     ms.input("power_cycle")
@@ -107,7 +107,7 @@ def test_tv109_positions_saved_at_power_off_unless_inhibited_ms113_ms112(ms: Har
     assert ms.get("axes")["X"]["machine_counts"] == 4540
 
 
-def test_tv110_savepos_bare_goes_silent_ms113_ms18(ms: Harness) -> None:
+def test_tv_110_savepos_bare_goes_silent_ms113_ms18(ms: Harness) -> None:
     assert ms.cmd("SP") == ACK
     assert ms.cmd("V") == b""
     assert ms.send(b"\xffB\x18\x61\x03\x3a") == b""

@@ -12,8 +12,8 @@ from emulator.devices.ms2000.calls import (
 )
 from emulator.devices.ms2000.commands.base import CommandSet
 from emulator.devices.ms2000.status import right_char, status_byte
-from emulator.motion import round_half_away
 from protocols.ms2000 import ErrorCode, Kind
+from protocols.rounding import round_half_away
 
 #: SPIN takes DAC values −128…128 (MS-71)
 SPIN_DAC = 128

@@ -18,8 +18,8 @@ from emulator.devices.ms2000.calls import (
     within,
 )
 from emulator.devices.ms2000.commands.base import CommandSet
-from emulator.motion import round_half_away
 from protocols.ms2000 import ErrorCode, Fmt, Kind, f6, integer
+from protocols.rounding import round_half_away
 
 #: UM 0 is refused (MS-44); so are values too small to keep positions finite [choice]
 MIN_UNIT_MULTIPLIER = 0.001

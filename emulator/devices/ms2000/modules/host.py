@@ -16,6 +16,7 @@ if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Activity, Axis
     from emulator.devices.ms2000.calls import Rendered, Reply
     from emulator.devices.ms2000.scheduler import Timer
+    from emulator.devices.ms2000.schema import Ms2000Knobs
     from emulator.devices.ms2000.settings import CardSettings
     from protocols.ms2000 import Shape
 
@@ -100,7 +101,7 @@ class AxisHost(Protocol):
     """All an axis may use of its controller (`controller.MS2000` implements it)."""
 
     @property
-    def knobs(self) -> Any: ...
+    def knobs(self) -> Ms2000Knobs: ...
 
     @property
     def servo_s(self) -> float: ...

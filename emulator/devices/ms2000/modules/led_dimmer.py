@@ -12,8 +12,8 @@ from typing import TYPE_CHECKING, Any
 
 from emulator.devices.ms2000.calls import Call, Param, Reply, one_of, run_settings, within
 from emulator.devices.ms2000.modules import Handler, Module, register
-from emulator.motion import round_half_away
 from emulator.schema import Choice, Field
+from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.modules.host import ModuleHost

@@ -1,0 +1,42 @@
+"""The benchmark's measurements, end to end in miniature (`make bench` runs them at length).
+
+Figures are not asserted: at this size and on a shared machine they are noise. What must hold on any
+machine: every measurement completes (exact replies, no setup race with the floor), its figures are
+finite, and the table renders one row per result.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from scripts.bench import table
+from scripts.perf import roundtrip, throughput, timescale, timing
+from scripts.perf.common import Result
+
+
+def finite(results: list[Result]) -> None:
+    for result in results:
+        figures = [*result.emulator, *result.reference, *(check.value for check in result.checks)]
+        assert figures and all(math.isfinite(value) for value in figures), result
+
+
+def test_round_trips_against_the_floor(tmp_path: Path) -> None:
+    results = roundtrip.run(tmp_path, visits=2, samples=5, move_samples=2)
+    assert [result.case for result in results] == [f"round trip {case.name}" for case in roundtrip.CASES]
+    finite(results)
+    assert table(results).count("\n") == len(results) + 1
+
+
+def test_busy_and_idle_ports(tmp_path: Path) -> None:
+    busy = throughput.busy(tmp_path / "busy", "mp285", ports=2, window_s=0.1, visits=1)
+    idle = throughput.idle(tmp_path / "idle", ports=4, window_s=0.1)
+    finite([busy, *idle])
+    assert busy.emulator[0] > 0 and busy.reference[0] > 0
+
+
+def test_realistic_timing_and_time_scale(tmp_path: Path) -> None:
+    timed = timing.run(tmp_path / "timing", requests=3, moves=1)
+    scaled = timescale.run(tmp_path / "scale", scale=100, seconds=1.0)
+    finite([*timed, scaled])
+    assert scaled.checks[1].passed, scaled.details  # the same position as at scale 1: not a timing
