@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from emulator import registry
-from emulator.devices.ms2000.controller import MS2000
+from emulator.devices.ms2000.model import Ms2000Device
 from emulator.devices.ms2000.schema import SCHEMA
 
 FAMILY = registry.register(
     registry.Family(
-        "ms2000", "ASI MS-2000 stage controller (ASCII, low-level binary, modules)", SCHEMA, MS2000
+        "ms2000", "ASI MS-2000 stage controller (ASCII, low-level binary, modules)", SCHEMA, Ms2000Device
     )
 )

@@ -19,7 +19,7 @@ from emulator.devices.ms2000.trajectory import Trajectory
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.controller import MoveGroup
+    from emulator.devices.ms2000.model import MoveGroup
     from emulator.devices.ms2000.modules.host import AxisHost
     from emulator.devices.ms2000.scheduler import Timer
     from emulator.devices.ms2000.schema import Ms2000Axis

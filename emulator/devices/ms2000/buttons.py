@@ -13,7 +13,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.model import Ms2000Device
 
 NAMES = ("at", "home", "joystick", "zero")
 NORMAL, LONG, EXTRA = "normal", "long", "extra"
@@ -45,7 +45,7 @@ def classify(ms: float) -> str:
 
 
 class Buttons:
-    def __init__(self, ctl: MS2000) -> None:
+    def __init__(self, ctl: Ms2000Device) -> None:
         self.ctl = ctl
         self.flags = 0
         self.fast = True

@@ -12,7 +12,7 @@ from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.model import Ms2000Device
 
 LABEL_WIDTH = 13
 VALUE_WIDTH = 10
@@ -26,7 +26,7 @@ def _row(left: str, right: str) -> str:
     return f"{left:<{INFO_LEFT_WIDTH}}{right}"
 
 
-def info_block(ctl: MS2000, axis: Axis, t: float) -> list[str]:
+def info_block(ctl: Ms2000Device, axis: Axis, t: float) -> list[str]:
     """The INFO report of one axis: 21 rows of two items, left item padded to 33 characters."""
     s = axis.s
     c = s.counts_per_mm
@@ -107,7 +107,7 @@ def info_block(ctl: MS2000, axis: Axis, t: float) -> list[str]:
     ]
 
 
-def build_lines(ctl: MS2000) -> list[str]:
+def build_lines(ctl: Ms2000Device) -> list[str]:
     """BU X (MS-102): build name, axes, command letters, boot loader, hardware, one line per module."""
     cfg = ctl.cfg
     lines = [

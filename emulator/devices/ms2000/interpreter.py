@@ -21,7 +21,7 @@ from protocols import ms2000 as proto
 from protocols.ms2000 import ErrorCode
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.model import Ms2000Device
     from emulator.devices.ms2000.scheduler import Timer
 
 #: the 0xFF control sequences (MS-119), for the traffic log
@@ -35,7 +35,7 @@ CONTROL_SEQUENCES = {
 
 
 class Interpreter:
-    def __init__(self, ctl: MS2000, handlers: dict[str, Handler]) -> None:
+    def __init__(self, ctl: Ms2000Device, handlers: dict[str, Handler]) -> None:
         self.ctl = ctl
         self.handlers = handlers
         self.low_level = False

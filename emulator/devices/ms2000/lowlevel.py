@@ -13,7 +13,7 @@ from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.model import Ms2000Device
 
 TENTHS_PER_MM = 10000
 #: default step of `+`/`-` in tenths of a micron (10 µm) [choice] (MS-121)
@@ -21,7 +21,7 @@ DEFAULT_INCREMENT = 100
 
 
 class LowLevel:
-    def __init__(self, ctl: MS2000) -> None:
+    def __init__(self, ctl: Ms2000Device) -> None:
         self.ctl = ctl
         self.decoder = LLFrameDecoder()
         self.increments: dict[str, int] = {}

@@ -28,7 +28,7 @@ from emulator.nvstore import StorageError
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.model import Ms2000Device
     from emulator.devices.ms2000.scheduler import Timer
 
 CLOCK_MARK_S = 600.0
@@ -41,7 +41,7 @@ REPR_LIMIT = 40
 class Power:
     """The controller's power states and its flash; works on the controller's axes and settings."""
 
-    def __init__(self, ctl: MS2000) -> None:
+    def __init__(self, ctl: Ms2000Device) -> None:
         self.ctl = ctl
         cfg = ctl.cfg
         identity = {"build": cfg.build_name, "version": cfg.version, "axes": list(cfg.motor_axes)}

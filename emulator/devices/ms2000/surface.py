@@ -13,7 +13,7 @@ from emulator.devices.ms2000.status import status_byte
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.model import Ms2000Device
 
 #: LCD lines are 20 characters (MS-116)
 LCD_WIDTH = 20
@@ -22,7 +22,7 @@ LCD_WIDTH = 20
 class ControlSurface:
     """The `in`/`get` vocabulary of the controller's control channel."""
 
-    def __init__(self, ctl: MS2000) -> None:
+    def __init__(self, ctl: Ms2000Device) -> None:
         self.ctl = ctl
 
     def lcd(self, t: float) -> list[str]:

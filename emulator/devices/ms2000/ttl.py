@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.model import Ms2000Device
     from emulator.devices.ms2000.scheduler import Timer
 
 #: OUT0 modes of the base controller (MS-91); 8 is PREPULSE's timed pulse, emulated as mode 2
@@ -20,7 +20,7 @@ PULSE_MODES = frozenset({2, 8})
 
 
 class Ttl:
-    def __init__(self, ctl: MS2000) -> None:
+    def __init__(self, ctl: Ms2000Device) -> None:
         self.ctl = ctl
         self.in0 = 0
         self.in1 = 0

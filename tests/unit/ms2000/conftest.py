@@ -9,7 +9,7 @@ from typing import Any
 import pytest
 
 from emulator.device import HostServices
-from emulator.devices.ms2000.controller import MS2000
+from emulator.devices.ms2000.model import Ms2000Device
 from emulator.profile import Profile, load_profile
 
 
@@ -29,13 +29,13 @@ class Harness:
         #: hand in any store instead, e.g. one that writes only when the test says
         self.services = services or HostServices(state_dir)
         self.t = t0
-        self.dev = MS2000("dut", self.profile, t0, self.services)
+        self.dev = Ms2000Device("dut", self.profile, t0, self.services)
         self.events: list[dict[str, Any]] = []
         self.emissions: list[tuple[float, bytes]] = []
 
     def restart(self) -> None:
         """A new model on the same state directory (or services): an emulator restart."""
-        self.dev = MS2000("dut", self.profile, self.t, self.services)
+        self.dev = Ms2000Device("dut", self.profile, self.t, self.services)
 
     def _collect(self) -> None:
         self.emissions.extend((e.due, e.data) for e in self.dev.take_output())

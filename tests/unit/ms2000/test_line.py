@@ -134,7 +134,7 @@ def test_junk_dropped_when_settings_match_again_ms4(ms: Harness) -> None:
 
 
 def test_garble_junk_is_never_cr_nor_ff_ms4() -> None:
-    from emulator.devices.ms2000.controller import garble
+    from emulator.devices.ms2000.model import garble
 
     junk = garble(bytes(range(256)))
     assert 0x0D not in junk and 0xFF not in junk

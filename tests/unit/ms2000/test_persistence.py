@@ -14,7 +14,7 @@ import pytest
 from emulator import nvstore
 from emulator.clock import ManualClock
 from emulator.device import ControlError, HostServices, LineSettings
-from emulator.devices.ms2000.controller import MS2000
+from emulator.devices.ms2000.model import Ms2000Device
 from emulator.nvstore import NvStore
 from emulator.runner import DeviceRunner
 from tests.support.memory_transport import MemoryTransport
@@ -262,7 +262,9 @@ def test_reset_whose_erase_fails_is_refused_and_keeps_the_device_ms111(
     """The host's factory reset erases the flash first; when that fails the runner keeps the old
     model and its saved settings, and the control request fails (`ctl reset` exits 1)."""
     profile = Harness().profile
-    runner = DeviceRunner(lambda now: MS2000("dut", profile, now, HostServices(tmp_path)), ManualClock())
+    runner = DeviceRunner(
+        lambda now: Ms2000Device("dut", profile, now, HostServices(tmp_path)), ManualClock()
+    )
     port = MemoryTransport()
     runner.attach_transport("main", port, "fast")
     port.attach(LineSettings(baud=9600, stop_bits=1))

@@ -10,7 +10,7 @@ import pytest
 
 from emulator.clock import ManualClock
 from emulator.device import HostServices, LineSettings
-from emulator.devices.ms2000.controller import MS2000
+from emulator.devices.ms2000.model import Ms2000Device
 from emulator.line import REALISTIC, char_time
 from emulator.profile import load_profile
 from emulator.runner import DeviceRunner
@@ -23,7 +23,7 @@ def hosted(timing: str = REALISTIC) -> tuple[MemoryTransport, ManualClock]:
     """A runner with the model on a memory port (the port's sink keeps the runner alive)."""
     clock = ManualClock()
     profile = load_profile("ms2000")
-    runner = DeviceRunner(lambda now: MS2000("dut", profile, now, HostServices(None)), clock)
+    runner = DeviceRunner(lambda now: Ms2000Device("dut", profile, now, HostServices(None)), clock)
     port = MemoryTransport()
     runner.attach_transport("main", port, timing)
     port.attach(LineSettings(baud=9600, stop_bits=1))

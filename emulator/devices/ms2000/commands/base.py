@@ -18,7 +18,7 @@ from emulator.devices.ms2000.calls import (
 from protocols.ms2000 import Fmt, Item, Shape
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.controller import MS2000
+    from emulator.devices.ms2000.model import Ms2000Device
 
 Handler = Callable[[Call], "Reply | Pending"]
 
@@ -26,7 +26,7 @@ Handler = Callable[[Call], "Reply | Pending"]
 class CommandSet:
     """Helpers of the command handlers; the handlers themselves live in the sibling modules."""
 
-    def __init__(self, ctl: MS2000) -> None:
+    def __init__(self, ctl: Ms2000Device) -> None:
         self.ctl = ctl
 
     @property

@@ -2,7 +2,7 @@
 (`AxisHost`) may use of the controller.
 
 A module is constructed with an object satisfying `ModuleHost` and nothing else, an axis with an
-`AxisHost`; mypy holds them to these members. `controller.MS2000` implements both. A module that
+`AxisHost`; mypy holds them to these members. `model.Ms2000Device` implements both. A module that
 needs more adds it here and to the controller, on purpose and in review, rather than reaching into
 controller state.
 """
@@ -98,7 +98,7 @@ class ModuleHost(Protocol):
 
 
 class AxisHost(Protocol):
-    """All an axis may use of its controller (`controller.MS2000` implements it)."""
+    """All an axis may use of its controller (`model.Ms2000Device` implements it)."""
 
     @property
     def knobs(self) -> Ms2000Knobs: ...

@@ -75,7 +75,7 @@ def garble(data: bytes) -> bytes:
     return bytes(out)
 
 
-class MS2000(Device):
+class Ms2000Device(Device):
     def __init__(self, name: str, profile: Profile[Ms2000Config], now: float, services: HostServices) -> None:
         super().__init__(name, profile, now, services)
         self.cfg = profile.config
