@@ -22,7 +22,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from emulator.device import LineSettings
 
 HALF = Fraction(1, 2)
 #: arrival times closer than this to the end of the previous byte count as back to back (the host's
@@ -40,16 +43,12 @@ class Framing:
     stop_bits: Fraction = Fraction(1)
 
     @classmethod
-    def of(cls, settings: Any, fallback: Any = None) -> Framing:
-        """From a LineSettings-like object; None attributes are taken from `fallback`."""
-
-        def pick(name: str) -> Any:
-            value = getattr(settings, name, None)
-            return getattr(fallback, name) if value is None and fallback is not None else value
-
-        return cls(
-            int(pick("baud")), int(pick("data_bits")), str(pick("parity")), Fraction(pick("stop_bits"))
-        )
+    def of(cls, settings: LineSettings) -> Framing:
+        """From complete settings (a host's are first filled from the device's: `HostLine.filled`)."""
+        baud, bits, parity, stop = settings.baud, settings.data_bits, settings.parity, settings.stop_bits
+        if baud is None or bits is None or parity is None or stop is None:
+            raise ValueError(f"incomplete line settings: {settings.describe()}")
+        return cls(baud, bits, parity, Fraction(stop))
 
     @property
     def bit_time(self) -> Fraction:

@@ -157,7 +157,7 @@ class Line:
             return
         if not any(name in FRAMING_SETTINGS for name in mismatches(self.settings, host)):
             return
-        device, other = Framing.of(self.settings), Framing.of(host, self.settings)
+        device, other = Framing.of(self.settings), Framing.of(host.filled(self.settings))
         start = Fraction(now)
         self._rx_wire = Wire(other, device, start)
         self._tx_wire = Wire(device, other, start)

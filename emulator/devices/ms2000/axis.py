@@ -10,10 +10,10 @@ limit or a new command (MS-71, MS-72, MS-83).
 from __future__ import annotations
 
 import math
-from enum import Enum
 from typing import TYPE_CHECKING, Any
 
 from emulator.devices.ms2000 import trajectory
+from emulator.devices.ms2000.activity import BUSY_ACTIVITIES, LIMIT_CODES, LOWER, UPPER, Activity
 from emulator.devices.ms2000.settings import AxisAuto, AxisSettings
 from emulator.devices.ms2000.trajectory import Trajectory
 from protocols.rounding import round_half_away
@@ -24,26 +24,10 @@ if TYPE_CHECKING:
     from emulator.devices.ms2000.scheduler import Timer
     from emulator.devices.ms2000.schema import Ms2000Axis
 
-UPPER = "upper"
-LOWER = "lower"
 #: drift-correction attempts allowed within the window (MS-61) and their spacing [choice]
 CORRECTION_ATTEMPTS = 18
 CORRECTION_WINDOW_S = 0.5
 CORRECTION_SPACING_S = 0.025
-LIMIT_CODES = {UPPER: 34, LOWER: 35}
-
-
-class Activity(Enum):
-    IDLE = "idle"
-    MOVE = "move"  # M, R, ring buffer, low-level moves: right status character `m`
-    HOME = "home"  # `!`: `B`
-    SPIN = "spin"  # `@`: `s`
-    VELOCITY = "velocity"  # VE: `s`
-    MANUAL = "manual"  # joystick, wheel: not busy
-    CORRECT = "correct"  # drift correction: not busy
-
-
-BUSY_ACTIVITIES = (Activity.MOVE, Activity.HOME, Activity.SPIN, Activity.VELOCITY)
 
 
 class Axis:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from emulator.device import (
@@ -32,7 +32,8 @@ from emulator.device import (
     HostServices,
     LineSettings,
 )
-from emulator.devices.ms2000.axis import LOWER, UPPER, Activity, Axis
+from emulator.devices.ms2000.activity import LOWER, UPPER, Activity
+from emulator.devices.ms2000.axis import Axis
 from emulator.devices.ms2000.buttons import TTL_ENABLE_BIT, Buttons
 from emulator.devices.ms2000.calls import Rendered, Reply
 from emulator.devices.ms2000.commands import BaseCommands
@@ -160,14 +161,9 @@ class Ms2000Device(Device):
         self._host_declared.update(settings)
 
     def host_line(self) -> HostLine | None:
-        seen = self._host_seen or HostLine()
         if self._host_seen is None and not self._host_declared:
             return None
-        merged = {
-            n: getattr(seen, n) for n in ("baud", "data_bits", "parity", "stop_bits", "rtscts", "xonxoff")
-        }
-        merged.update(self._host_declared)
-        return HostLine(**merged)
+        return replace(self._host_seen or HostLine(), **self._host_declared)
 
     def garbles(self, host: HostLine | None = None) -> bool:
         host = host or self.host_line()

@@ -11,7 +11,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from emulator.device import ControlError
-from emulator.devices.ms2000.axis import LOWER, UPPER
+from emulator.devices.ms2000.activity import LOWER, UPPER
 from emulator.devices.ms2000.calls import Pending, Reply
 from emulator.devices.ms2000.flash import Flash
 from emulator.devices.ms2000.schema import baud_of

@@ -4,7 +4,8 @@ character needs the buttons and is the controller's (`left_char`)."""
 
 from __future__ import annotations
 
-from emulator.devices.ms2000.axis import LOWER, UPPER, Activity, Axis
+from emulator.devices.ms2000.activity import LOWER, UPPER, Activity
+from emulator.devices.ms2000.axis import Axis
 
 
 def status_byte(axis: Axis, t: float, bit5_up_is_one: bool = True, low_level: bool = False) -> int:

@@ -7,7 +7,8 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from emulator.device import ControlError
-from emulator.devices.ms2000.axis import LOWER, UPPER, Activity, Axis
+from emulator.devices.ms2000.activity import LOWER, UPPER, Activity
+from emulator.devices.ms2000.axis import Axis
 from emulator.devices.ms2000.buttons import NAMES as BUTTON_NAMES
 from emulator.devices.ms2000.status import status_byte
 from protocols.rounding import round_half_away

@@ -6,7 +6,7 @@ from fractions import Fraction
 
 import pytest
 
-from emulator.device import LineSettings
+from emulator.device import HostLine, LineSettings
 from emulator.uart import Char, Framing, Wire, garble
 
 DEVICE = Framing(9600)
@@ -59,9 +59,9 @@ def test_char_times_are_exact_stop_samples() -> None:
 
 def test_framing_from_line_settings_fills_the_unseen() -> None:
     """MP-4: parity and data bits are invisible on a PTY (None): assumed to match."""
-    host = LineSettings(19200, None, None, 2, False, False)
+    host = HostLine(19200, None, None, 2, False, False)
     own = LineSettings(9600, 8, "odd", 1, False, False)
-    assert Framing.of(host, own) == Framing(19200, 8, "odd", Fraction(2))
+    assert Framing.of(host.filled(own)) == Framing(19200, 8, "odd", Fraction(2))
     assert Framing.of(LineSettings(4800, 8, "none", 1.5)) == Framing(4800, 8, "none", Fraction(3, 2))
 
 

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from emulator.devices.ms2000.axis import Activity, Axis
+from emulator.devices.ms2000.activity import Activity
+from emulator.devices.ms2000.axis import Axis
 from emulator.devices.ms2000.calls import (
     Call,
     CommandError,

@@ -13,7 +13,8 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.axis import Activity, Axis
+    from emulator.devices.ms2000.activity import Activity
+    from emulator.devices.ms2000.axis import Axis
     from emulator.devices.ms2000.calls import Rendered, Reply
     from emulator.devices.ms2000.scheduler import Timer
     from emulator.devices.ms2000.schema import Ms2000Knobs
