@@ -93,7 +93,7 @@ def test_events() -> None:
     bench.control("crash")
     bench.control("power_cycle")
     bench.run(T0 + 3)
-    names = [e["ev"] for e in bench.device.take_events()]
+    names = [e["ev"] for e in bench.take_events()]
     assert names == ["move_started", "move_ended", "crashed", "power_cycle", "powered_on"]
 
 

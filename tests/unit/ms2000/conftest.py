@@ -1,4 +1,5 @@
-"""A manual-clock harness for the MS-2000 model: bytes in, bytes out, time moved explicitly."""
+"""The MS-2000 on the model harness (tests/support/model_harness.py), unpaced: bytes in at the
+current time, their replies back at once, time moved explicitly."""
 
 from __future__ import annotations
 
@@ -11,14 +12,15 @@ import pytest
 from emulator.device import HostServices
 from emulator.devices.ms2000.model import Ms2000Device
 from emulator.profile import Profile, load_profile
+from tests.support.model_harness import ModelHarness
 
 
-class Harness:
-    """Drives one MS2000 model the way the runner does: advance before receive, deadlines honoured."""
+class Harness(ModelHarness[Ms2000Device]):
+    """One MS2000 model; the host's line is the model's business (`input("host_line", ...)`)."""
 
     def __init__(
         self,
-        profile: str | Profile = "ms2000",
+        profile: str | Profile[Any] = "ms2000",
         overrides: dict[str, Any] | None = None,
         state_dir: Path | None = None,
         t0: float = 0.0,
@@ -28,51 +30,39 @@ class Harness:
         #: a state directory is written at once (HostServices' default stores); `services` can
         #: hand in any store instead, e.g. one that writes only when the test says
         self.services = services or HostServices(state_dir)
-        self.t = t0
-        self.dev = Ms2000Device("dut", self.profile, t0, self.services)
-        self.events: list[dict[str, Any]] = []
-        self.emissions: list[tuple[float, bytes]] = []
 
-    def restart(self) -> None:
-        """A new model on the same state directory (or services): an emulator restart."""
-        self.dev = Ms2000Device("dut", self.profile, self.t, self.services)
+        def make(now: float) -> Ms2000Device:
+            return Ms2000Device("dut", self.profile, now, self.services)
 
-    def _collect(self) -> None:
-        self.emissions.extend((e.due, e.data) for e in self.dev.take_output())
-        self.events.extend(self.dev.take_events())
+        super().__init__(make, t0=t0, paced=False)
+
+    @property
+    def dev(self) -> Ms2000Device:
+        return self.device
+
+    @property
+    def t(self) -> float:
+        return self.now
+
+    @property
+    def emissions(self) -> list[tuple[float, bytes]]:
+        """The emissions not yet read by `output`."""
+        return [(e.due, e.data) for e in self.emitted]
 
     def output(self) -> bytes:
-        data = b"".join(d for _, d in self.emissions)
-        self.emissions.clear()
-        return data
+        """Drain what the device has sent."""
+        return b"".join(e.data for e in self.take_emissions())
 
     def send(self, data: bytes, chunk: int | None = None) -> bytes:
         """Write bytes at the current time (all at once, or in chunks) and return what came back."""
-        self.wait(0)
         size = chunk or len(data) or 1
+        self.wait(0)
         for i in range(0, len(data), size):
-            self.dev.advance(self.t)
-            self.dev.receive(data[i : i + size], self.t)
-            self.dev.advance(self.t)
-            self._collect()
+            self.write(data[i : i + size])
         return self.output()
 
     def cmd(self, text: str) -> bytes:
         return self.send(text.encode("latin-1") + b"\r")
-
-    def wait(self, seconds: float) -> None:
-        """Move time forward, running every internal event at its due instant."""
-        end = self.t + seconds
-        while True:
-            due = self.dev.next_deadline()
-            if due is None or due > end:
-                break
-            self.t = max(self.t, due)
-            self.dev.advance(self.t)
-            self._collect()
-        self.t = end
-        self.dev.advance(self.t)
-        self._collect()
 
     def idle(self, limit: float = 120.0, step: float = 0.01) -> float:
         """Run until no axis is busy (what polling `/` until `N` does); returns the time it took."""
@@ -83,19 +73,7 @@ class Harness:
             self.wait(step)
         return self.t - start
 
-    def input(self, which: str, /, **params: Any) -> Any:
-        self.wait(0)
-        result = self.dev.control_input(which, params, self.t)
-        self._collect()
-        return result
-
-    def get(self, name: str) -> Any:
-        return self.dev.observe(name, self.t)
-
-    def take_events(self, name: str | None = None) -> list[dict[str, Any]]:
-        events = [e for e in self.events if name is None or e["ev"] == name]
-        self.events = [e for e in self.events if not (name is None or e["ev"] == name)]
-        return events
+    input = ModelHarness.control
 
 
 @pytest.fixture
