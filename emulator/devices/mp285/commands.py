@@ -1,7 +1,7 @@
 """What the MP-285 does with each complete item the frame parser yields (docs/mp285.md §2 ... §10).
 
 `TABLE` maps each command byte to its row of the protocol's command table (name, frame length, reply
-length: protocols/mp285.py `COMMANDS`, which the frame parser delimits by), its handler and whether
+length: protocols.mp285 `COMMANDS`, which the frame parser delimits by), its handler and whether
 it is a query (`c`, `s`: answered at once even while a move is outstanding, MP-51, MP-52). A handler
 runs when the frame's last byte is processed, at `t`, with the device in IDLE or PAUSED, or (queries
 only) with a move outstanding.

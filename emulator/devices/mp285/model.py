@@ -1,7 +1,7 @@
 """Sutter MP-285 / MP-285A controller: the sans-I/O device model (docs/mp285.md).
 
 Rule IDs (MP-n) refer to the behaviour reference in docs/mp285.md. The wire format lives in
-protocols/mp285.py; the controller's parts live beside this module, one concern each:
+protocols.mp285; the controller's parts live beside this module, one concern each:
 
 - line.py: the serial port (MP-1 ... MP-7): garbled lines, pacing, the one-character register;
 - receiver.py: frames, and bytes while a move is outstanding (§7: interrupts, answers to `c`/`s`,

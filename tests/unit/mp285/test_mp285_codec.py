@@ -1,4 +1,4 @@
-"""protocols/mp285.py: command encoding/decoding, replies, status block, units, the frame parser."""
+"""protocols.mp285: command encoding/decoding, replies, status block, units, the frame parser."""
 
 from __future__ import annotations
 
