@@ -5,8 +5,6 @@ from __future__ import annotations
 from collections.abc import Iterable, Mapping
 from enum import Enum
 
-from protocols.ms2000.formats import Fmt
-
 
 class Shape(Enum):
     ACK = "ack"
@@ -22,31 +20,13 @@ SHAPE_NAMES = tuple(s.value for s in Shape)
 #: shapes that `reply_trailing_space` extends (MS-38)
 TRAILING_SPACE_SHAPES = (Shape.A_AXIS, Shape.A_LIST, Shape.COLON_AXIS_A)
 
-_A6 = (Shape.A_AXIS, Fmt.F6)
-_AI = (Shape.A_AXIS, Fmt.I)
-_A3 = (Shape.A_AXIS, Fmt.F3)
-_AW = (Shape.A_AXIS, Fmt.W)
-_CA6 = (Shape.COLON_AXIS_A, Fmt.F6)
-_CAI = (Shape.COLON_AXIS_A, Fmt.I)
-_LI = (Shape.A_LIST, Fmt.I)
-
-#: query shape and number format per command key (MS-35); sets reply `ack`
-QUERY_SHAPES: dict[str, tuple[Shape, Fmt]] = {
-    **dict.fromkeys(("S", "PC", "VE", "D", "C", "UM", "RU", "ES", "RT", "OS"), _A6),
-    **dict.fromkeys(
-        ("KP", "KI", "KD", "KV", "KA", "AA", "EP", "MA", "TTL", "LL", "VB", "SB", "Z2B", "BE", "BCA"), _AI
-    ),
-    **dict.fromkeys(("CCA", "SP", "J", "SI", "ZS", "AZ", "RM"), _AI),
-    **dict.fromkeys(("SL", "SU", "HM"), _A3),
-    **dict.fromkeys(("B", "E"), _CA6),
-    **dict.fromkeys(("AC", "WT"), _CAI),
-    "JS": _AI,
-    **dict.fromkeys(("LED", "SECURE"), (Shape.AXIS_COLON_A, Fmt.I)),
-    "WRDAC": (Shape.AXIS_COLON_A, Fmt.F6),
-    "W": (Shape.A_LIST, Fmt.W),
-    **dict.fromkeys(("RS", "RA", "MC"), _LI),
-    "LD": _AW,
-    "/": (Shape.BUSY_CHAR, Fmt.C),
+#: query reply shape per command key (MS-35); a key not listed answers `:A X=…`. Setting commands
+#: reply `ack`. How each value is written is the command's own (its parameters' number format).
+QUERY_SHAPES: dict[str, Shape] = {
+    **dict.fromkeys(("B", "E", "AC", "WT"), Shape.COLON_AXIS_A),
+    **dict.fromkeys(("LED", "SECURE", "WRDAC"), Shape.AXIS_COLON_A),
+    **dict.fromkeys(("W", "RS", "RA", "MC"), Shape.A_LIST),
+    "/": Shape.BUSY_CHAR,
 }
 
 
@@ -54,7 +34,7 @@ def query_shape(key: str, overrides: Mapping[str, str] | None = None) -> Shape:
     """The shape of a command's query reply, after `reply_shape_overrides` (MS-36…MS-38)."""
     if overrides and key in overrides:
         return Shape(overrides[key])
-    return QUERY_SHAPES.get(key, _AI)[0]
+    return QUERY_SHAPES.get(key, Shape.A_AXIS)
 
 
 def format_items(shape: Shape, items: Iterable[tuple[str, str]], trailing_space: bool = False) -> str:

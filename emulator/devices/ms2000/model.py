@@ -104,7 +104,7 @@ class Ms2000Device(Device):
         self.low = LowLevel(self)
         handlers = BaseCommands(self).table()
         handlers.update(self.modules.handlers())
-        self.shapes = {key: shape for key, (shape, _) in proto.QUERY_SHAPES.items()}
+        self.shapes = dict(proto.QUERY_SHAPES)
         self.shapes.update(self.modules.query_shapes())
         self.interpreter = Interpreter(self, handlers)
         self.surface = ControlSurface(self)

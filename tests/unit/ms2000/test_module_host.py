@@ -30,7 +30,7 @@ class ProbeModule(Module):
 
     name = PROBE
     # WRDAC belongs to DAC OUT in the command table; no emulated module implements it yet
-    query_shapes: ClassVar[Mapping[str, tuple[Shape, Fmt]]] = {"WRDAC": (Shape.AXIS_COLON_A, Fmt.F6)}
+    query_shapes: ClassVar[Mapping[str, Shape]] = {"WRDAC": Shape.AXIS_COLON_A}
     knob_fields = (Field("probe_gain", Int(1, 10), 1, "TEST", "kicks per probe_kick (TEST PROBE)"),)
     observable = "probe"
     inputs = frozenset({"probe_kick"})

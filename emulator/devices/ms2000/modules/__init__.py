@@ -34,7 +34,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 from emulator.device import ControlError
 from emulator.devices.ms2000.calls import Call, Pending, Reply
 from emulator.schema import Field
-from protocols.ms2000 import Fmt, Shape
+from protocols.ms2000 import Shape
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.modules.host import ModuleHost
@@ -47,7 +47,7 @@ FEATURE_FLAGS = ("LL COMMANDS",)
 
 class Module:
     name: ClassVar[str]
-    query_shapes: ClassVar[Mapping[str, tuple[Shape, Fmt]]] = {}
+    query_shapes: ClassVar[Mapping[str, Shape]] = {}
     profile_fields: ClassVar[tuple[Field, ...]] = ()
     knob_fields: ClassVar[tuple[Field, ...]] = ()
     in0_modes: ClassVar[frozenset[int]] = frozenset()

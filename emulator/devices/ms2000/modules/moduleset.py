@@ -53,7 +53,7 @@ class ModuleSet:
         return table
 
     def query_shapes(self) -> dict[str, Shape]:
-        return {key: shape for m in self._modules for key, (shape, _) in m.query_shapes.items()}
+        return {key: shape for m in self._modules for key, shape in m.query_shapes.items()}
 
     # ---- reports and the control channel --------------------------------------------------------
 
