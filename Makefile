@@ -28,6 +28,8 @@ test: $(STAMP)
 	$(BIN)/mypy --strict protocols
 	$(BIN)/python -m pytest -q $(ARGS)
 
+# every performance target (issue "Speed") in one table, exit 1 on a missed one; ARGS="--quick"
+# (10-15 s), "--json FILE", "--only roundtrip timing ..."
 bench: $(STAMP)
 	$(BIN)/python scripts/bench.py $(ARGS)
 

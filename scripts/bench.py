@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from scripts.perf import roundtrip, throughput, timescale, timing  # noqa: E402
-from scripts.perf.common import Result, figure  # noqa: E402
+from scripts.perf.common import BenchError, Result, figure  # noqa: E402
 
 
 @dataclass(frozen=True)
@@ -68,7 +68,7 @@ QUICK = Plan(
     visits=5,
     samples=100,
     move_samples=20,
-    busy_window_s=0.4,
+    busy_window_s=0.3,
     busy_visits=1,
     idle_window_s=2.0,
     timing_requests=200,
@@ -85,6 +85,12 @@ GROUPS: dict[str, Callable[[Path, Plan], list[Result]]] = {
     "timing": lambda work, plan: timing.run(work, plan.timing_requests, plan.timing_moves),
     "timescale": lambda work, plan: [timescale.run(work, plan.time_scale, plan.scaled_move_s)],
 }
+
+
+REFERENCES = (
+    "the no-parsing floor (round trips), one busy port (throughput), the motion model (moves), "
+    "duration / scale (time scale)"
+)
 
 
 def table(results: list[Result]) -> str:
@@ -117,7 +123,7 @@ def main() -> int:
         formatter_class=argparse.RawDescriptionHelpFormatter,
         epilog=__doc__.split("\n\n", 2)[2],
     )
-    parser.add_argument("--quick", action="store_true", help="about 10 s: fewer round trips, shorter windows")
+    parser.add_argument("--quick", action="store_true", help="10-15 s: fewer round trips, shorter windows")
     parser.add_argument("--json", type=Path, metavar="FILE", help="also write the results here")
     parser.add_argument(
         "--only", nargs="+", choices=list(GROUPS), metavar="GROUP", help="run only these groups"
@@ -130,17 +136,25 @@ def main() -> int:
         for name, measure in GROUPS.items():
             if args.only and name not in args.only:
                 continue
-            print(f"bench: {name}...", file=sys.stderr, flush=True)
+            print(f"bench: {name}...", end="", file=sys.stderr, flush=True)
+            begun = time.monotonic()
+            # a measurement that cannot be made is not a missed target: exit 2, no table
             try:
                 results += measure(Path(tmp) / name, plan)
-            except Exception:  # a measurement that cannot be made is not a missed target: exit 2
+                print(f" {time.monotonic() - begun:.1f} s", file=sys.stderr)
+            except BenchError as error:
+                print(f"\nbench: {name}: measurement failed: {error}", file=sys.stderr)
+                return 2
+            except Exception:
+                print(file=sys.stderr)
                 traceback.print_exc()
-                print(f"bench: {name}: measurement failed (above); no table", file=sys.stderr)
+                print(f"bench: {name}: measurement failed (above)", file=sys.stderr)
                 return 2
     print(table(results))
+    print(f"\nfloor/ref: {REFERENCES}")
     failures = [failure for result in results for failure in result.failures()]
     print(
-        f"\n{'quick' if args.quick else 'full'} run, {time.monotonic() - started:.0f} s, "
+        f"{'quick' if args.quick else 'full'} run, {time.monotonic() - started:.0f} s, "
         f"{os.cpu_count()} CPUs, load average {' '.join(f'{x:.1f}' for x in os.getloadavg())}"
     )
     if args.json:

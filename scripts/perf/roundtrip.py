@@ -1,0 +1,197 @@
+"""Round trips through the PTY (`--timing fast`, pyserial host): the emulator against the floor.
+
+Each case runs `visits` visits of a warm-up and `samples` timed samples, alternating emulator and
+floor (E F E F ...), each visit on a freshly opened port. A floor visit replays the transcript of the
+emulator visit just before it, so both sides do the same exchanges with the same replies. Reported:
+the median over visits of each side's p50 and p99, and as ratios the median over visits of each
+visit's emulator/floor ratio (a pair adjacent in time, so slow drift of a shared machine cancels).
+
+Placement: during a visit the responder (every thread of the daemon, or the floor) runs on the least
+busy CPU and the host thread on another, so that every round trip crosses CPUs the same way, as
+between a host program and an emulator each on its own core. Left to the scheduler, a ping-pong pair
+shares a CPU in some visits and not in others, and on a virtual machine the quicker responder can
+come out slower (its vCPU halts between requests and takes long to wake): unpinned, the ratios swung
+between 0.4 and 7 from one run to the next on the 2-CPU development machine.
+
+Targets (issue "Speed"): p50 ≤ 1.10 × floor and p99 ≤ 1.5 × floor.
+"""
+
+from __future__ import annotations
+
+import statistics
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+import serial
+
+from emulator.launcher import RunningDaemon
+from protocols.mp285 import GetPosition, SetVelocity, encode_position
+from scripts.perf.common import (
+    BenchError,
+    Check,
+    Result,
+    ask,
+    open_host,
+    p50_p99,
+    placed,
+    quietest_cpus,
+    read_reply,
+    serve,
+)
+from scripts.perf.floor import floor_port
+
+P50_RATIO = 1.10
+P99_RATIO = 1.5
+WARMUP = 20
+#: polls after which a tiny move that has not completed is a hung device
+MAX_POLLS = 10_000
+
+#: (request length, reply) of each exchange of a visit, in order: what the floor replays
+Transcript = list[tuple[int, bytes]]
+
+
+class Case(Protocol):
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def device(self) -> str:
+        """The daemon's device (and port) the case talks to."""
+
+    def setup(self, port: serial.Serial) -> None:
+        """Once, on the emulator's port, before the visits."""
+
+    def sample(self, port: serial.Serial, index: int, log: Transcript) -> None:
+        """The exchanges of sample `index` (counted across visits), each reply checked and logged."""
+
+
+@dataclass(frozen=True)
+class Fixed:
+    """One request answered by known bytes."""
+
+    name: str
+    device: str
+    request: bytes
+    reply: bytes
+
+    def setup(self, port: serial.Serial) -> None:
+        pass
+
+    def sample(self, port: serial.Serial, index: int, log: Transcript) -> None:
+        port.write(self.request)
+        reply = read_reply(port, len(self.reply), self.name)
+        if reply != self.reply:
+            raise BenchError(f"{self.name}: answered {reply!r}, expected {self.reply!r}")
+        log.append((len(self.request), reply))
+
+
+@dataclass(frozen=True)
+class MoveAndPoll:
+    """`M X=<index + 1>` then `/` until `N`, one sample per whole exchange. Targets rise by 0.1 µm
+    (5 counts or 4), so no move is a backwards one with its anti-backlash detour (MS-57)."""
+
+    name: str = "ms2000 M X + / to N"
+    device: str = "ms2000"
+
+    def setup(self, port: serial.Serial) -> None:
+        # ramp time AC 1 ms: a 5-count step then lands in 0.3 ms, within a few polls
+        ask(port, b"AC X=1\r", b":A\r\n")
+
+    def sample(self, port: serial.Serial, index: int, log: Transcript) -> None:
+        request = f"M X={index + 1}\r".encode()
+        port.write(request)
+        reply = read_reply(port, 4, "M")
+        if reply != b":A\r\n":
+            raise BenchError(f"{request!r} answered {reply!r}")
+        log.append((len(request), reply))
+        for _ in range(MAX_POLLS):
+            port.write(b"/\r")
+            reply = read_reply(port, 3, "/")
+            log.append((2, reply))
+            if reply == b"N\r\n":
+                return
+            if reply != b"B\r\n":
+                raise BenchError(f"/ answered {reply!r} during a move")
+        raise BenchError(f"{request!r}: still busy after {MAX_POLLS} polls")
+
+
+#: in this order: the move comes last, after the cases that read X as 0
+CASES: tuple[Case, ...] = (
+    Fixed("mp285 c", "mp285", GetPosition().encode(), encode_position(0, 0, 0)),
+    Fixed("mp285 V", "mp285", SetVelocity.of(1000).encode(), b"\r"),
+    Fixed("ms2000 W X Y", "ms2000", b"W X Y\r", b":A 0 0\r\n"),
+    Fixed("ms2000 S X?", "ms2000", b"S X?\r", b":A X=5.145600\r\n"),
+    MoveAndPoll(),
+)
+
+
+def run(workdir: Path, visits: int, samples: int, move_samples: int) -> list[Result]:
+    daemon = serve(workdir, ["--profile", "mp285", "--profile", "ms2000", "--timing", "fast"], 2)
+    try:
+        results = []
+        for case in CASES:
+            with open_host(daemon.port(case.device)) as port:
+                case.setup(port)
+            count = move_samples if isinstance(case, MoveAndPoll) else samples
+            results.append(measure(case, daemon, visits, count))
+        return results
+    finally:
+        daemon.stop()
+
+
+def measure(case: Case, daemon: RunningDaemon, visits: int, samples: int) -> Result:
+    emulated: list[tuple[float, float]] = []
+    floors: list[tuple[float, float]] = []
+    exchanges = 0
+    for visit in range(visits):
+        first = visit * (WARMUP + samples)
+        cpus = quietest_cpus()
+        device, host = {cpus[0]}, {cpus[1 % len(cpus)]}
+        with placed({0: host, daemon.proc.pid: device}):
+            times, log = _visit(daemon.port(case.device), case, first, samples)
+        with floor_port(log) as (path, pid), placed({0: host, pid: device}):
+            floor_times, _ = _visit(path, case, first, samples)
+        emulated.append(p50_p99(times))
+        floors.append(p50_p99(floor_times))
+        exchanges += len(log)
+    ratios = [(e[0] / f[0], e[1] / f[1]) for e, f in zip(emulated, floors, strict=True)]
+    p50_ratio = statistics.median(r[0] for r in ratios)
+    p99_ratio = statistics.median(r[1] for r in ratios)
+    return Result(
+        case=f"round trip {case.name}",
+        unit="µs",
+        emulator=_median_of_visits(emulated),
+        reference=_median_of_visits(floors),
+        checks=(
+            Check("p50 ratio", p50_ratio, "<=", P50_RATIO),
+            Check("p99 ratio", p99_ratio, "<=", P99_RATIO),
+        ),
+        details={
+            "visits": visits,
+            "samples_per_visit": samples,
+            "exchanges_per_sample": exchanges / (visits * (WARMUP + samples)),
+            "emulator_us_by_visit": emulated,
+            "floor_us_by_visit": floors,
+            "ratios_by_visit": ratios,
+        },
+    )
+
+
+def _visit(path: str, case: Case, first: int, samples: int) -> tuple[list[float], Transcript]:
+    """Warm-up then `samples` timed samples on a fresh port; times in µs."""
+    log: Transcript = []
+    times = []
+    with open_host(path) as port:
+        for index in range(first, first + WARMUP):
+            case.sample(port, index, log)
+        for index in range(first + WARMUP, first + WARMUP + samples):
+            start = time.perf_counter()
+            case.sample(port, index, log)
+            times.append((time.perf_counter() - start) * 1e6)
+    return times, log
+
+
+def _median_of_visits(figures: list[tuple[float, float]]) -> tuple[float, float]:
+    return statistics.median(f[0] for f in figures), statistics.median(f[1] for f in figures)
