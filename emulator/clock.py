@@ -50,6 +50,10 @@ class Clock(ABC):
     def now(self) -> float:
         """Current device time in seconds."""
 
+    def device_span(self, wall_seconds: float) -> float:
+        """Device seconds that pass in `wall_seconds` of wall time (0 when time does not run)."""
+        return 0.0
+
     @abstractmethod
     def wall_delay(self, device_time: float) -> float | None:
         """Wall seconds until `device_time` (0 if past), or None if time does not run on its own."""
@@ -86,6 +90,9 @@ class ScaledClock(Clock):
         if self._paused:
             return self._anchor_device
         return self._anchor_device + (self._wall() - self._anchor_wall) * self._scale
+
+    def device_span(self, wall_seconds: float) -> float:
+        return 0.0 if self._paused else wall_seconds * self._scale
 
     def wall_delay(self, device_time: float) -> float | None:
         if self._paused:

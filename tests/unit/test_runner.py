@@ -10,12 +10,12 @@ from pathlib import Path
 import pytest
 
 import tests.support.probe_device  # noqa: F401  (registers the `probe` family)
-from emulator.clock import ManualClock
+from emulator.clock import ManualClock, ScaledClock
 from emulator.device import HostServices, LineSettings
 from emulator.line import FAST, REALISTIC
 from emulator.profile import load_profile
 from emulator.registry import family
-from emulator.runner import INPUT_BACKLOG, OUTPUT_BACKLOG, DeviceRunner
+from emulator.runner import INPUT_BACKLOG, OUTPUT_BACKLOG, RELEASE_EARLY_S, DeviceRunner
 from emulator.trafficlog import TrafficLog
 from tests.support.memory_transport import MemoryTransport
 
@@ -318,3 +318,25 @@ def test_fault_parameters_are_checked(fault: str, params: dict, message: str) ->
     with pytest.raises(ValueError, match=message):
         h.runner.inject("main", fault, params)
     assert h.runner.channels["main"].faults.describe() == make(FAST).runner.channels["main"].faults.describe()
+
+
+def test_paced_output_is_released_half_a_millisecond_early_on_a_running_clock() -> None:
+    """The loop sleeps in whole milliseconds, so each paced byte is released up to RELEASE_EARLY_S
+    before its instant (centred on it) rather than up to 1 ms after; a manual clock is exact."""
+    wall = [100.0]
+    clock = ScaledClock(1.0, wall=lambda: wall[0])
+    profile = load_profile(PROBE)
+    runner = DeviceRunner(lambda now: family("probe").factory("probe-0", profile, now, HostServices()), clock)
+    port = MemoryTransport()
+    runner.attach_transport("main", port, REALISTIC)
+    port.attach(LineSettings(9600, None, None, 1, False, False))
+    port.send(b"E x\r")
+    wall[0] += 4 * CHAR  # the request's wire time: the device has the line and replies
+    runner.pump()
+    first_byte_at = 4 * CHAR + CHAR
+    wall[0] = 100.0 + first_byte_at - RELEASE_EARLY_S * 1.2
+    runner.pump()
+    assert port.take() == b""
+    wall[0] = 100.0 + first_byte_at - RELEASE_EARLY_S * 0.8
+    runner.pump()
+    assert port.take() == b"x"
