@@ -82,6 +82,10 @@ class Channel:
     faults: Faults = field(default_factory=Faults)
     stats: PortStats = field(default_factory=PortStats)
     reported_mismatch: tuple[Any, ...] = ()
+    #: what the pacing was last computed from (paced, device settings, host settings)
+    paced_for: tuple[Any, ...] = ()
+    #: the (host, device) settings last checked for a mismatch
+    checked_for: tuple[Any, ...] = ()
 
 
 def unsent(ch: Channel) -> str | None:

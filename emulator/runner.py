@@ -133,6 +133,7 @@ class DeviceRunner:
         ch.stats.dropping = False
         self._clear_wire(ch, "the host hung up")
         ch.reported_mismatch = ()
+        ch.checked_for = ()
         lost = f"; {unheard} bytes still on the wire discarded" if unheard else ""
         log.info("%s/%s: host detached%s", self.name, ch.name, lost)
         self._set_host(ch, None)
@@ -228,9 +229,14 @@ class DeviceRunner:
         return due
 
     def _refresh_pacing(self) -> None:
+        """Character times from the current settings; recomputed only when one of them changed."""
         for ch in self.channels.values():
             realistic = ch.timing == REALISTIC and self.device.pace_line
             own = self.device.line_settings(ch.name)
+            key = (realistic, own, ch.host)
+            if key == ch.paced_for:
+                continue
+            ch.paced_for = key
             ch.to_host.per_char = settings_char_time(own, own) if realistic else 0.0
             host = ch.host or own
             ch.from_host.per_char = settings_char_time(host, own) if realistic else 0.0
@@ -313,6 +319,9 @@ class DeviceRunner:
             if ch.host is None:
                 continue
             own = self.device.line_settings(ch.name)
+            if (ch.host, own) == ch.checked_for:
+                continue  # nothing changed since the last check (the common case, every pump)
+            ch.checked_for = (ch.host, own)
             differing = mismatches(own, ch.host)
             key = (tuple(differing), ch.host, own) if differing else ()
             if key == ch.reported_mismatch:
@@ -370,6 +379,7 @@ class DeviceRunner:
         for ch in self.channels.values():
             self._clear_wire(ch, "a factory reset")
             ch.reported_mismatch = ()
+            ch.checked_for = ()
             if ch.attached:
                 self.device.line_changed(ch.host, now, ch.name)
         self.pump()

@@ -69,12 +69,18 @@ class PortError(Exception):
 
 def host_settings(master: int) -> HostLine:
     """What the host configured on the slave, read through the master (parity and data bits unseen)."""
-    iflag, _oflag, cflag, _lflag, ispeed, ospeed, _cc = termios.tcgetattr(master)
+    return _read_settings(master)[0]
+
+
+def _read_settings(master: int) -> tuple[HostLine, bool]:
+    """The host's settings, and whether EXTPROC is still set (its next change will be announced by
+    a TIOCPKT_IOCTL packet, so its data packets need no settings read)."""
+    iflag, _oflag, cflag, lflag, ispeed, ospeed, _cc = termios.tcgetattr(master)
     baud = _SPEEDS.get(ospeed) or _SPEEDS.get(ispeed)
     if cflag & CBAUD == BOTHER:
         raw = fcntl.ioctl(master, TCGETS2, bytes(44))
         baud = struct.unpack_from("I", raw, 40)[0] or None  # 0 is no rate at all: treat as unknown
-    return HostLine(
+    host = HostLine(
         baud=baud,
         data_bits=None,
         parity=None,
@@ -82,6 +88,7 @@ def host_settings(master: int) -> HostLine:
         rtscts=bool(cflag & termios.CRTSCTS),
         xonxoff=bool(iflag & (termios.IXON | termios.IXOFF)),
     )
+    return host, bool(lflag & EXTPROC)
 
 
 def prepare_link(link: Path) -> None:
@@ -117,6 +124,8 @@ class PtyTransport(Transport):
         self._pts = ""
         self._attached = False
         self._host: HostLine | None = None
+        #: the host's settings changes arrive as TIOCPKT_IOCTL packets (EXTPROC still set)
+        self._announced = False
         self._pending = bytearray()
         #: reading stopped because the sink had no room; `resume_reading` restarts it
         self._paused = False
@@ -277,11 +286,13 @@ class PtyTransport(Transport):
             return  # flush/flow status only (our own stale flush causes one): no host activity
         if not self._attached:
             self._attached = True
-            self._host = host_settings(self._master)
+            self._host, self._announced = _read_settings(self._master)
             self._sink.host_attached(self._host)
         if packet[0] == 0:
-            # A host that clears EXTPROC sends no ioctl packets: check its settings with its data.
-            self._recheck_settings()
+            # A host that cleared EXTPROC sends no ioctl packets: check its settings with its data.
+            # (Clearing it is itself announced, since the old settings had it.)
+            if not self._announced:
+                self._recheck_settings()
             if len(packet) > 1:
                 self._sink.host_data(packet[1:])
         elif packet[0] & TIOCPKT_IOCTL:
@@ -289,7 +300,7 @@ class PtyTransport(Transport):
 
     def _recheck_settings(self) -> None:
         assert self._sink is not None
-        current = host_settings(self._master)
+        current, self._announced = _read_settings(self._master)
         if current != self._host:
             self._host = current
             self._sink.host_line(current)

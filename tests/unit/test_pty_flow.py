@@ -13,7 +13,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from emulator.device import LineSettings
-from emulator.transports.pty import OUTPUT_LIMIT, READ_CHUNK, PtyTransport
+from emulator.transports.pty import EXTPROC, OUTPUT_LIMIT, READ_CHUNK, PtyTransport
 
 TIMEOUT = 5.0
 
@@ -221,3 +221,31 @@ def read_available(fd: int) -> bytes:
             if exc.errno in (errno.EAGAIN, errno.EWOULDBLOCK):
                 return b"".join(chunks)
             raise
+
+
+def test_a_host_that_clears_extproc_still_has_its_settings_seen_with_its_data(tmp_path: Path) -> None:
+    """With EXTPROC set, settings changes are announced and data packets cost no settings read; a
+    host that clears it announces that once, and from then on its settings are read with its data."""
+
+    def set_attrs(fd: int, speed: int, clear_extproc: bool = False) -> None:
+        attrs = termios.tcgetattr(fd)
+        attrs[4] = attrs[5] = speed
+        if clear_extproc:
+            attrs[3] &= ~EXTPROC
+        termios.tcsetattr(fd, termios.TCSANOW, attrs)
+
+    async def scenario() -> None:
+        sink = Sink(None)
+        transport = open_port(tmp_path, "port", sink)
+        with host(tmp_path / "port") as fd:
+            set_attrs(fd, termios.B19200)  # the first announcement attaches the host
+            await until(sink, lambda: sink.attached == 1)
+            set_attrs(fd, termios.B4800, clear_extproc=True)  # announced: the old settings had it
+            await until(sink, lambda: bool(sink.lines) and sink.lines[-1].baud == 4800)
+            set_attrs(fd, termios.B2400)  # not announced any more
+            assert os.write(fd, b"z") == 1
+            await until(sink, lambda: bytes(sink.data) == b"z")
+        assert sink.lines[-1].baud == 2400
+        transport.close()
+
+    asyncio.run(scenario())

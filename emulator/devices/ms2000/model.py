@@ -124,6 +124,7 @@ class Ms2000Device(Device):
         self.booted_at = now
         self._host_seen: HostLine | None = None
         self._host_declared: dict[str, Any] = {}
+        self._host_merged: HostLine | None = None
         self.power.power_up(now, cold=True)
 
     # ---- Device contract: time ----------------------------------------------------------------
@@ -155,15 +156,22 @@ class Ms2000Device(Device):
             if host is None
             else {k: v for k, v in self._host_declared.items() if k in ("data_bits", "parity")}
         )
+        self._merge_host()
 
     def declare_host(self, settings: dict[str, Any]) -> None:
         """Host settings the transport cannot see, declared on the control channel (MS-4)."""
         self._host_declared.update(settings)
+        self._merge_host()
+
+    def _merge_host(self) -> None:
+        """What the host uses: seen and declared settings, merged once per change (read per byte)."""
+        if self._host_seen is None and not self._host_declared:
+            self._host_merged = None
+        else:
+            self._host_merged = replace(self._host_seen or HostLine(), **self._host_declared)
 
     def host_line(self) -> HostLine | None:
-        if self._host_seen is None and not self._host_declared:
-            return None
-        return replace(self._host_seen or HostLine(), **self._host_declared)
+        return self._host_merged
 
     def garbles(self, host: HostLine | None = None) -> bool:
         host = host or self.host_line()

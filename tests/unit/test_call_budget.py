@@ -1,0 +1,64 @@
+"""A regression guard for the hot path that does not time anything: the number of Python function
+calls one round trip costs through the runner (host bytes in, model, reply out) on a manual clock.
+
+A change that adds work per byte or per command shows up here as a higher count on any machine;
+`make bench` measures what the count costs in time. Ceilings are today's counts plus ~15 %; lower
+them when the path gets cheaper."""
+
+from __future__ import annotations
+
+import cProfile
+import pstats
+
+import pytest
+
+from emulator.clock import ManualClock
+from emulator.device import HostServices, LineSettings
+from emulator.line import FAST, REALISTIC
+from emulator.profile import load_profile
+from emulator.registry import family
+from emulator.runner import DeviceRunner
+from tests.support.memory_transport import MemoryTransport
+
+ROUND_TRIPS = 200
+CASES = {
+    # name: (profile, request, reply, timing, ceiling in calls per round trip)
+    # measured: before the settings caches 435, 286, 746; with them 311, 180, 439
+    "ms2000 W X Y fast": ("ms2000", b"W X Y\r", b":A 0 0\r\n", FAST, 360),
+    "mp285 c fast": ("mp285", b"c\r", None, FAST, 210),
+    "ms2000 W X Y realistic": ("ms2000", b"W X Y\r", b":A 0 0\r\n", REALISTIC, 505),
+}
+
+
+def calls_per_round_trip(profile_name: str, request: bytes, reply: bytes | None, timing: str) -> float:
+    clock = ManualClock()
+    profile = load_profile(profile_name)
+    registered = family(profile.family)
+    assert registered is not None
+    factory = registered.factory
+    runner = DeviceRunner(lambda now: factory("dut", profile, now, HostServices()), clock)
+    port = MemoryTransport()
+    runner.attach_transport("main", port, timing)
+    port.attach(LineSettings(9600, None, None, 1, False, False))
+    clock.advance(2.0)  # past any power-up silence
+
+    def round_trip() -> None:
+        port.send(request)
+        clock.advance(0.05)  # the request's and the reply's wire time at 9600 baud
+        answer = port.take()
+        assert answer and (reply is None or answer == reply), answer
+
+    round_trip()  # warm up: first use builds caches
+    profiler = cProfile.Profile()
+    profiler.enable()
+    for _ in range(ROUND_TRIPS):
+        round_trip()
+    profiler.disable()
+    return float(pstats.Stats(profiler).total_calls) / ROUND_TRIPS
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_calls_per_round_trip_stay_under_their_ceiling(name: str) -> None:
+    profile_name, request, reply, timing, ceiling = CASES[name]
+    calls = calls_per_round_trip(profile_name, request, reply, timing)
+    assert calls <= ceiling, f"{name}: {calls:.0f} calls per round trip, ceiling {ceiling}"
