@@ -111,10 +111,12 @@ def socket_is_live(path: Path) -> bool:
     return True
 
 
-def write_private_atomic(path: Path, text: str) -> tuple[int, int]:
+def write_private_atomic(path: Path, text: str, *, sync_dir: bool = False) -> tuple[int, int]:
     """Write `text` to `path` mode 0600 through a uniquely named temporary file in the same folder
-    (flush, fsync, rename): readers see the old file or the new one, never a part. Returns the new
-    file's (st_dev, st_ino) so that only this very file is removed later."""
+    (flush, fsync, rename; with `sync_dir` the rename itself is made durable): readers see the old
+    file or the new one, never a part, even after a kill -9. The temporary file's name carries the
+    writer's pid (`.<name>.<pid>.<random>.tmp`), so a later run can tell a dead writer's leftover.
+    Returns the new file's (st_dev, st_ino) so that only this very file is removed later."""
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as handle:
@@ -127,6 +129,12 @@ def write_private_atomic(path: Path, text: str) -> tuple[int, int]:
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
+    if sync_dir:
+        dir_fd = os.open(path.parent, os.O_RDONLY)
+        try:
+            os.fsync(dir_fd)
+        finally:
+            os.close(dir_fd)
     return info.st_dev, info.st_ino
 
 
