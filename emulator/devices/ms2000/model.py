@@ -125,6 +125,8 @@ class Ms2000Device(Device):
         self._host_seen: HostLine | None = None
         self._host_declared: dict[str, Any] = {}
         self._host_merged: HostLine | None = None
+        self._line_key: tuple[int, float] | None = None
+        self._line = LineSettings()
         self.power.power_up(now, cold=True)
 
     # ---- Device contract: time ----------------------------------------------------------------
@@ -146,7 +148,12 @@ class Ms2000Device(Device):
     # ---- the line (MS-1…MS-12, MS-119) --------------------------------------------------------
 
     def line_settings(self, channel: str = MAIN) -> LineSettings:
-        return LineSettings(self.baud, 8, "none", self.card.stop_bits, False, False)
+        # asked several times per byte: one object per (baud, stop bits) lets callers compare cheaply
+        key = (self.baud, self.card.stop_bits)
+        if key != self._line_key:
+            self._line_key = key
+            self._line = LineSettings(self.baud, 8, "none", self.card.stop_bits, False, False)
+        return self._line
 
     def line_changed(self, host: HostLine | None, now: float, channel: str = MAIN) -> None:
         self._host_seen = host
