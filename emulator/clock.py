@@ -8,10 +8,11 @@ move it explicitly, so runs are exact and deterministic).
 
 from __future__ import annotations
 
-import math
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+
+from emulator.schema import finite_number
 
 #: Device seconds per wall second. Beyond these the model cannot keep up (above) or a device second
 #: lasts for hours (below); NaN or infinity would make every deadline "now" and spin the loop.
@@ -24,20 +25,20 @@ MAX_STEP = 3600.0
 
 def check_scale(scale: float) -> float:
     """`scale` if it is a finite number in [MIN_SCALE, MAX_SCALE]; else ValueError saying so."""
-    if isinstance(scale, bool) or not isinstance(scale, int | float) or not math.isfinite(scale):
-        raise ValueError(f"time scale must be a finite number, got {scale!r}")
-    if not MIN_SCALE <= scale <= MAX_SCALE:
-        raise ValueError(f"time scale must be between {MIN_SCALE:g} and {MAX_SCALE:g}, got {scale:g}")
-    return float(scale)
+    return _checked(scale, "time scale", MIN_SCALE, MAX_SCALE, "")
 
 
 def check_step(seconds: float) -> float:
     """`seconds` if it is a finite number in [0, MAX_STEP]; else ValueError saying so."""
-    if isinstance(seconds, bool) or not isinstance(seconds, int | float) or not math.isfinite(seconds):
-        raise ValueError(f"step must be a finite number of seconds, got {seconds!r}")
-    if not 0 <= seconds <= MAX_STEP:
-        raise ValueError(f"step must be between 0 and {MAX_STEP:g} s, got {seconds:g}")
-    return float(seconds)
+    return _checked(seconds, "step", 0.0, MAX_STEP, " s")
+
+
+def _checked(value: float, what: str, low: float, high: float, unit: str) -> float:
+    if not finite_number(value):
+        raise ValueError(f"{what} must be a finite number, got {value!r}")
+    if not low <= value <= high:
+        raise ValueError(f"{what} must be between {low:g} and {high:g}{unit}, got {value:g}")
+    return float(value)
 
 
 class Clock(ABC):

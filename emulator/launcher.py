@@ -15,7 +15,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -164,3 +164,14 @@ def _read_ready_lines(proc: subprocess.Popen[bytes], count: int, log: LogPump) -
 def _said(log: LogPump) -> str:
     with log.changed:
         return " | ".join(log.lines)
+
+
+def write_rig(workdir: Path, devices: Sequence[tuple[str, str]], timing: str | None = None) -> Path:
+    """`workdir/rig.yaml` with one device per (name, profile), each on its own port, all with
+    `timing` when given (written as JSON, which is YAML)."""
+    workdir.mkdir(parents=True, exist_ok=True)
+    port = {} if timing is None else {"ports": [{"timing": timing}]}
+    rig = {"spec": 1, "devices": [{"name": name, "profile": profile, **port} for name, profile in devices]}
+    path = workdir / "rig.yaml"
+    path.write_text(json.dumps(rig))
+    return path

@@ -35,7 +35,7 @@ from functools import partial
 from pathlib import Path
 from typing import Any
 
-from emulator.runtime import write_private_atomic
+from emulator.runtime import pid_alive, write_private_atomic
 
 log = logging.getLogger("stage_emu.nvstore")
 
@@ -186,7 +186,7 @@ class NvStore:
                 info = candidate.lstat()
                 if not stat.S_ISREG(info.st_mode):
                     continue
-                if owner is not None and _running(int(owner.group(1))):
+                if owner is not None and pid_alive(int(owner.group(1))):
                     continue
                 if owner is None and time.time() - info.st_mtime < LEGACY_TEMP_AGE_S:
                     continue
@@ -206,18 +206,6 @@ class NvStore:
                 removed,
                 path.name,
             )
-
-
-def _running(pid: int) -> bool:
-    """Whether `pid` may still be a process (writing its temporary file). Only "no such process"
-    counts as gone: a process of another user, or a number the system rejects, is left alone."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except (OSError, OverflowError):
-        pass
-    return True
 
 
 def _write_atomic(path: Path, text: str) -> None:

@@ -4,12 +4,12 @@ seen on it, pacing in both directions, injected faults and what it lost.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import Any
 
 from emulator.device import HostLine
 from emulator.line import REALISTIC, Pacer
+from emulator.schema import finite_number
 from emulator.transports.base import Transport
 
 #: the value each corrupted byte is XORed with (`corrupt` fault)
@@ -111,8 +111,7 @@ def fault_params(fault: str, params: dict[str, Any]) -> dict[str, float]:
     values: dict[str, float] = {}
     for name, value in params.items():
         low, high = PARAM_RANGES[name]
-        number = not isinstance(value, bool) and isinstance(value, int | float)
-        if not number or not math.isfinite(value) or not low <= value <= high:
+        if not finite_number(value) or not low <= value <= high:
             raise ValueError(f"{name} must be a number >= {low} and <= {high}, got {value!r}")
         if name == "count" and value != int(value):
             raise ValueError(f"count must be a whole number, got {value:g}")

@@ -88,12 +88,15 @@ def check_socket_path(path: Path, option: str) -> None:
 
 
 def pid_alive(pid: int) -> bool:
+    """Whether `pid` may still be a process. Only "no such process" (or a number no process can
+    have) counts as gone: another user's process, or any other refusal, is taken as alive, so what
+    it owns is left alone."""
     try:
         os.kill(pid, 0)
-    except ProcessLookupError:
+    except (ProcessLookupError, OverflowError):
         return False
-    except PermissionError:
-        return True  # someone else's process: alive
+    except OSError:
+        return True
     return True
 
 

@@ -31,6 +31,12 @@ Path = tuple[str | int, ...]
 SHOW_LIMIT = 60
 
 
+def finite_number(value: Any) -> bool:
+    """A number that device time and kinematics can compute with: not a bool, not NaN or infinite
+    (JSON from a host or a state file, YAML from a profile, a command-line option)."""
+    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+
+
 class SchemaError(Exception):
     """A value that does not fit its field. `path` locates it inside the profile."""
 

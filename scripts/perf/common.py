@@ -98,15 +98,6 @@ def serve(workdir: Path, args: list[str], ports: int) -> RunningDaemon:
     return start_daemon(workdir, args, ports, cwd=ROOT)
 
 
-def write_rig(workdir: Path, devices: Sequence[tuple[str, str]]) -> Path:
-    """A rig file with one device per (name, profile), each on its own port (JSON is YAML)."""
-    workdir.mkdir(parents=True, exist_ok=True)
-    path = workdir / "rig.yaml"
-    rig = {"spec": 1, "devices": [{"name": name, "profile": profile} for name, profile in devices]}
-    path.write_text(json.dumps(rig))
-    return path
-
-
 def profile_values(profile: str) -> dict[str, Any]:
     """A bundled profile's settings by dotted path, as `stage-emu describe --json` prints them: the
     expected timings come from the documented inputs, not from the emulator's internals."""

@@ -24,6 +24,7 @@ from multiprocessing.connection import Connection
 from multiprocessing.process import BaseProcess
 from pathlib import Path
 
+from emulator.launcher import write_rig
 from protocols.mp285 import GetPosition, encode_position
 from scripts.perf.common import (
     REPLY_TIMEOUT,
@@ -35,7 +36,6 @@ from scripts.perf.common import (
     placed,
     quietest_cpus,
     serve,
-    write_rig,
 )
 from scripts.soak.probes import cpu_percent, rss_mb
 

@@ -23,7 +23,7 @@ from typing import Any
 
 import serial
 
-from emulator.launcher import RunningDaemon, start_daemon
+from emulator.launcher import RunningDaemon, start_daemon, write_rig
 from scripts.soak.probes import cpu_percent, fd_count, round_trips, rss_mb, settle
 
 MEASURED = "measured"
@@ -50,18 +50,9 @@ class Outcome:
             self.exceeded.append(text)
 
 
-def _rig(workdir: Path, devices: list[tuple[str, str]], timing: str) -> Path:
-    workdir.mkdir(parents=True, exist_ok=True)
-    lines = ["spec: 1", "devices:"]
-    for name, profile in devices:
-        lines += [f"  - name: {name}", f"    profile: {profile}", f"    ports: [{{timing: {timing}}}]"]
-    path = workdir / "rig.yaml"
-    path.write_text("\n".join(lines) + "\n")
-    return path
-
-
 def _start(workdir: Path, devices: list[tuple[str, str]], timing: str, *extra: str) -> RunningDaemon:
-    return start_daemon(workdir, [str(_rig(workdir, devices, timing)), *extra], expect_ports=len(devices))
+    rig = write_rig(workdir, devices, timing)
+    return start_daemon(workdir, [str(rig), *extra], expect_ports=len(devices))
 
 
 def _flood(paths: list[str], seconds: float, seed: int, counter: Any) -> None:

@@ -20,11 +20,11 @@ from emulator.devices.ms2000.settings import (
     AxisSettings,
     CardAuto,
     CardSettings,
-    finite_number,
     from_plain,
     to_plain,
 )
 from emulator.nvstore import StorageError
+from emulator.schema import finite_number
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:

@@ -12,10 +12,11 @@ Positions of limits and home are machine millimetres (fixed hardware locations, 
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
+
+from emulator.schema import finite_number
 
 T = TypeVar("T")
 
@@ -141,11 +142,6 @@ def from_plain(factory: T, data: Any, path: str, reject: Reject) -> T:
 
 def _usable(key: str, value: Any) -> bool:
     return key not in _USABLE or _USABLE[key](value)
-
-
-def finite_number(value: Any) -> bool:
-    """A JSON number the model can compute with (not a bool, not NaN or infinite)."""
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _same_kind(old: Any, new: Any) -> bool:
