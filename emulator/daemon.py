@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import gc
 import json
 import logging
 import os
@@ -98,6 +99,9 @@ class Daemon:
         loop.add_signal_handler(signal.SIGUSR2, self._log_status)
         try:
             await self.start()
+            # What start-up built lives as long as the daemon: kept out of the collector's full
+            # passes, which otherwise traverse all of it and stall a round trip now and then.
+            gc.freeze()
             await self._stop.wait()
         finally:
             await self.shutdown()

@@ -306,6 +306,11 @@ class Device(ABC):
         Default: no inputs; the snapshot's top-level keys as observables."""
         return {"inputs": [], "observables": sorted(self.snapshot(self.now))}
 
+    def shut_down(self, now: float) -> None:
+        """The host is stopping (the daemon exits): save now what the model would save a little
+        later (positions it saves once at rest). Nothing by default."""
+        return None
+
     def forget_nonvolatile(self) -> None:
         """Erase whatever the model keeps across power cycles (saved settings), before a factory
         reset from the control channel. Nothing by default. Raises ControlError when it cannot, and

@@ -37,7 +37,7 @@ def settings_char_time(settings: HostLine, fallback: LineSettings) -> float:
     return char_time(line.baud, line.data_bits, line.parity, line.stop_bits)  # type: ignore[arg-type]
 
 
-@dataclass
+@dataclass(slots=True)
 class _Run:
     """Bytes sent back to back: byte `start + k` is complete at `first_end + k * per_char`."""
 
@@ -66,10 +66,10 @@ class Pacer:
     def push(self, t: float, data: bytes) -> None:
         if not data:
             return
-        start = max(t, self._wire_free)
-        run = _Run(start + self.per_char, self.per_char, bytes(data))
-        self._wire_free = start + self.per_char * len(data)
-        self._runs.append(run)
+        start = t if t > self._wire_free else self._wire_free
+        per_char = self.per_char
+        self._wire_free = start + per_char * len(data)
+        self._runs.append(_Run(start + per_char, per_char, bytes(data)))
         self._size += len(data)
 
     @property
@@ -83,20 +83,23 @@ class Pacer:
     def take_due(self, now: float) -> list[tuple[float, bytes]]:
         """Runs of characters complete by `now`, each as (completion time of its last byte, bytes)."""
         taken: list[tuple[float, bytes]] = []
-        while self._runs:
-            run = self._runs[0]
+        runs = self._runs
+        while runs:
+            run = runs[0]
             if run.first_end > now + _EPSILON:
                 break
+            if run.per_char <= 0:  # fast timing: the run arrives whole
+                taken.append((run.first_end, run.data if run.start == 0 else run.data[run.start :]))
+                self._size -= len(run.data) - run.start
+                runs.popleft()
+                continue
             left = len(run.data) - run.start
-            if run.per_char <= 0:
-                count = left
-            else:
-                count = min(left, int((now + _EPSILON - run.first_end) / run.per_char) + 1)
+            count = min(left, int((now + _EPSILON - run.first_end) / run.per_char) + 1)
             end = run.start + count
             taken.append((run.first_end + (count - 1) * run.per_char, run.data[run.start : end]))
             self._size -= count
             if count == left:
-                self._runs.popleft()
+                runs.popleft()
             else:
                 run.start += count
                 run.first_end += count * run.per_char

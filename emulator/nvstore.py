@@ -45,6 +45,11 @@ _SAFE = re.compile(r"[^A-Za-z0-9._-]")
 LEGACY_TEMP_AGE_S = 60.0
 
 
+def encode(data: dict[str, Any]) -> str:
+    """A store file's text: sorted and indented, for a person reading it."""
+    return json.dumps(data, sort_keys=True, indent=1)
+
+
 class StorageError(Exception):
     """A store file could not be loaded, saved or erased. The message is one line."""
 
@@ -91,7 +96,7 @@ class NvStore:
             raise failure
 
     def _text(self) -> str:
-        return json.dumps(self._data, sort_keys=True, indent=1)
+        return encode(self._data or {})
 
     def write_text(self, text: str) -> StorageError | None:
         """Write `text` atomically; the failure (logged) instead of raising it."""
@@ -247,9 +252,12 @@ class DeferredStore(ReportingStore):
         self._saved = 0
 
     def save(self, data: dict[str, Any]) -> None:
-        self._data = copy.deepcopy(data)
+        # A shallow copy, encoded on the writer's thread: a model replaces the sections it saves and
+        # never changes one in place (`Flash.write`), so this image cannot change under the writer,
+        # and the loop spends no time on a deep copy or on JSON per save (one per move at rest).
+        self._data = dict(data)
         self._saved += 1
-        self._writer.submit(self, self._saved, self._text())
+        self._writer.submit(self, self._saved, self._data)
 
     def written(self, number: int, failure: StorageError | None) -> None:
         """The writer wrote image `number` (on the host's thread)."""
@@ -279,8 +287,8 @@ class FlashWriter:
         self.state_dir = state_dir
         self._deliver = deliver
         self._cond = threading.Condition()
-        #: per store, the latest image not yet taken by the worker: (its number, its text)
-        self._waiting: dict[DeferredStore, tuple[int, str]] = {}
+        #: per store, the latest image not yet taken by the worker: (its number, the image)
+        self._waiting: dict[DeferredStore, tuple[int, dict[str, Any]]] = {}
         self._busy: DeferredStore | None = None
         self._thread: threading.Thread | None = None
         self._closed = False
@@ -288,10 +296,10 @@ class FlashWriter:
     def open(self, device_id: str, report: Report) -> DeferredStore:
         return DeferredStore(self, self.state_dir, device_id, report)
 
-    def submit(self, store: DeferredStore, number: int, text: str) -> None:
+    def submit(self, store: DeferredStore, number: int, image: dict[str, Any]) -> None:
         with self._cond:
             if not self._closed:
-                self._waiting[store] = (number, text)
+                self._waiting[store] = (number, image)
                 if self._thread is None:
                     self._thread = threading.Thread(target=self._run, name="flash-writer", daemon=True)
                     self._thread.start()
@@ -301,9 +309,9 @@ class FlashWriter:
             self._waiting.pop(store, None)
             while self._busy is store:
                 self._cond.wait()
-        store.written(number, store.write_text(text))
+        store.written(number, store.write_text(encode(image)))
 
-    def drop(self, store: DeferredStore) -> tuple[int, str] | None:
+    def drop(self, store: DeferredStore) -> tuple[int, dict[str, Any]] | None:
         """Forget the image `store` has waiting (returned) and wait for its write in progress."""
         with self._cond:
             dropped = self._waiting.pop(store, None)
@@ -328,9 +336,9 @@ class FlashWriter:
                 if not self._waiting:
                     return
                 store = next(iter(self._waiting))
-                number, text = self._waiting.pop(store)
+                number, image = self._waiting.pop(store)
                 self._busy = store
-            failure = store.write_text(text)
+            failure = store.write_text(encode(image))
             with self._cond:
                 self._busy = None
                 self._cond.notify_all()

@@ -103,9 +103,12 @@ def table(results: list[Result]) -> str:
                 result.unit,
                 "/".join(figure(value) for value in result.emulator),
                 "/".join(figure(value) for value in result.reference) or "—",
-                ", ".join(f"{check.name} {figure(check.value)}" for check in result.checks),
-                ", ".join(f"{check.op} {figure(check.bound)}" for check in result.checks),
-                "pass" if result.passed else "FAIL",
+                ", ".join(
+                    [f"{check.name} {figure(check.value)}" for check in result.checks]
+                    + [f"{name} {figure(value)}" for name, value in result.info]
+                ),
+                ", ".join(f"{check.op} {figure(check.bound)}" for check in result.checks) or "—",
+                ("pass" if result.passed else "FAIL") if result.checks else "info",
             )
         )
     widths = [max(len(row[i]) for row in rows) for i in range(len(rows[0]))]

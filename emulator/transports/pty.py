@@ -127,6 +127,8 @@ class PtyTransport(Transport):
         #: the host's settings changes arrive as TIOCPKT_IOCTL packets (EXTPROC still set)
         self._announced = False
         self._pending = bytearray()
+        #: EPOLLOUT is in the epoll's mask (output is waiting for the host to read)
+        self._out_armed = False
         #: reading stopped because the sink had no room; `resume_reading` restarts it
         self._paused = False
         self._resume: asyncio.Handle | None = None
@@ -166,6 +168,7 @@ class PtyTransport(Transport):
         self._master = master
         self._epoll = select.epoll()
         self._epoll.register(master, _ET_IN)
+        self._out_armed = False
         assert self._loop is not None
         self._loop.add_reader(self._epoll.fileno(), self._on_ready)
         os.symlink(self._pts, self._link)
@@ -249,9 +252,9 @@ class PtyTransport(Transport):
             if budget <= 0:
                 self._read_soon()
                 return
+            asked = (budget if self._hung_up else min(room, budget)) + 1  # + the packet-mode header
             try:
-                # one more byte for the packet-mode header
-                packet = os.read(self._master, (budget if self._hung_up else min(room, budget)) + 1)
+                packet = os.read(self._master, asked)
             except BlockingIOError:
                 if self._hung_up:
                     self._end_hangup()  # another host opened the port before we saw EIO
@@ -271,6 +274,10 @@ class PtyTransport(Transport):
                     continue
                 packet = packet[: room + 1]
             self._on_packet(packet)
+            if packet[0] == 0 and len(packet) < asked and not self._hung_up:
+                # Drained: bytes the host writes later raise a new edge, so no read to EAGAIN. (A
+                # status packet is read past: data may be queued behind it.)
+                return
 
     def _end_hangup(self) -> None:
         count, self._discarded = self._discarded, 0
@@ -352,5 +359,8 @@ class PtyTransport(Transport):
                     return
                 raise
             del self._pending[:sent]
-        if self._epoll is not None and self._master >= 0:
-            self._epoll.modify(self._master, _ET_IN_OUT if self._pending else _ET_IN)
+        wants_out = bool(self._pending)
+        if wants_out != self._out_armed and self._epoll is not None and self._master >= 0:
+            # only on a change: re-arming costs a system call per reply
+            self._out_armed = wants_out
+            self._epoll.modify(self._master, _ET_IN_OUT if wants_out else _ET_IN)

@@ -14,6 +14,8 @@ class Fmt(Enum):
     C = "C"
 
 
+#: below this every integral double is an exact integer whose shortest text is its digits
+_EXACT_INTEGERS = 2.0**53
 #: enough digits for any finite double at 6 decimals
 _DECIMALS = Context(prec=400, rounding=ROUND_HALF_UP)
 
@@ -27,6 +29,8 @@ def round_decimals(value: float, decimals: int) -> Decimal:
 
 def fixed(value: float, decimals: int) -> str:
     """Fixed point, half away from zero, never `-0` (MS-47, MS-48)."""
+    if decimals == 0 and -_EXACT_INTEGERS < value < _EXACT_INTEGERS and value == int(value):
+        return str(int(value))  # the common WHERE case, exact without the decimal detour
     rounded = round_decimals(value, decimals)
     if rounded == 0:
         rounded = abs(rounded)

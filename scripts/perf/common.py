@@ -61,6 +61,8 @@ class Result:
     reference: tuple[float, ...]
     checks: tuple[Check, ...]
     details: dict[str, Any] = field(default_factory=dict)
+    #: figures shown for reference, with no target: (name, value)
+    info: tuple[tuple[str, float], ...] = ()
 
     @property
     def passed(self) -> bool:

@@ -21,10 +21,11 @@ Script = Sequence[tuple[int, bytes]]
 
 
 @contextmanager
-def floor_port(script: Script) -> Iterator[tuple[str, int]]:
-    """A responder answering `script` (cycled); yields its port's path and its pid, stops it on exit."""
+def floor_port(script: Script, event_loop: bool = False) -> Iterator[tuple[str, int]]:
+    """A responder answering `script` (cycled), in a blocking loop or inside an asyncio loop; yields
+    its port's path and its pid, stops it on exit."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", "scripts.perf.responder"],
+        [sys.executable, "-m", "scripts.perf.responder", *(["--event-loop"] if event_loop else [])],
         cwd=ROOT,
         stdin=subprocess.PIPE,
         stdout=subprocess.PIPE,

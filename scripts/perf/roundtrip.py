@@ -117,11 +117,12 @@ class MoveAndPoll:
         raise BenchError(f"{request!r}: still busy after {MAX_POLLS} polls")
 
 
+W_X_Y = Fixed("ms2000 W X Y", "ms2000", b"W X Y\r", b":A 0 0\r\n")
 #: in this order: the move comes last, after the cases that read X as 0
 CASES: tuple[Case, ...] = (
     Fixed("mp285 c", "mp285", GetPosition().encode(), encode_position(0, 0, 0)),
     Fixed("mp285 V", "mp285", SetVelocity.of(1000).encode(), b"\r"),
-    Fixed("ms2000 W X Y", "ms2000", b"W X Y\r", b":A 0 0\r\n"),
+    W_X_Y,
     Fixed("ms2000 S X?", "ms2000", b"S X?\r", b":A X=5.145600\r\n"),
     MoveAndPoll(),
 )
@@ -136,9 +137,40 @@ def run(workdir: Path, visits: int, samples: int, move_samples: int) -> list[Res
                 case.setup(port)
             count = move_samples if isinstance(case, MoveAndPoll) else samples
             results.append(measure(case, daemon, visits, count))
-        return results
     finally:
         daemon.stop()
+    results.append(event_loop_share(W_X_Y, visits, samples))
+    return results
+
+
+def event_loop_share(case: Fixed, visits: int, samples: int) -> Result:
+    """For reference, no target: the floor's answering moved into an asyncio loop (a reader callback
+    on the master, as the daemon serves its ports), against the floor. This part of the emulator's
+    ratio is the event loop's, before any parsing or modelling."""
+    script = [(len(case.request), case.reply)]
+    looped: list[tuple[float, float]] = []
+    floors: list[tuple[float, float]] = []
+    for visit in range(visits):
+        first = visit * (WARMUP + samples)
+        cpus = quietest_cpus()
+        device, host = {cpus[0]}, {cpus[1 % len(cpus)]}
+        with floor_port(script, event_loop=True) as (path, pid), placed({0: host, pid: device}):
+            looped.append(p50_p99(_visit(path, case, first, samples)[0]))
+        with floor_port(script) as (path, pid), placed({0: host, pid: device}):
+            floors.append(p50_p99(_visit(path, case, first, samples)[0]))
+    ratios = [(e[0] / f[0], e[1] / f[1]) for e, f in zip(looped, floors, strict=True)]
+    return Result(
+        case=f"round trip {case.name} answered in an asyncio loop",
+        unit="µs",
+        emulator=_median_of_visits(looped),
+        reference=_median_of_visits(floors),
+        checks=(),
+        details={"looped_us_by_visit": looped, "floor_us_by_visit": floors, "ratios_by_visit": ratios},
+        info=(
+            ("p50 ratio", statistics.median(r[0] for r in ratios)),
+            ("p99 ratio", statistics.median(r[1] for r in ratios)),
+        ),
+    )
 
 
 def measure(case: Case, daemon: RunningDaemon, visits: int, samples: int) -> Result:

@@ -17,13 +17,16 @@ from scripts.perf.common import Result
 
 def finite(results: list[Result]) -> None:
     for result in results:
-        figures = [*result.emulator, *result.reference, *(check.value for check in result.checks)]
+        checked = [check.value for check in result.checks] + [value for _, value in result.info]
+        figures = [*result.emulator, *result.reference, *checked]
         assert figures and all(math.isfinite(value) for value in figures), result
 
 
 def test_round_trips_against_the_floor(tmp_path: Path) -> None:
     results = roundtrip.run(tmp_path, visits=2, samples=5, move_samples=2)
-    assert [result.case for result in results] == [f"round trip {case.name}" for case in roundtrip.CASES]
+    cases = [f"round trip {case.name}" for case in roundtrip.CASES]
+    assert [result.case for result in results] == [*cases, f"{cases[2]} answered in an asyncio loop"]
+    assert not results[-1].checks and len(results[-1].info) == 2  # a reference figure, no target
     finite(results)
     assert table(results).count("\n") == len(results) + 1
 

@@ -63,6 +63,8 @@ class Flash:
         return True
 
     def write(self, **sections: Any) -> None:
+        """Replace whole sections (never change a saved one in place: the store keeps only a
+        shallow copy of each image until its writer has encoded it)."""
         self.data.update(sections)
         self.data["format"] = FORMAT
         self.data["identity"] = self.identity

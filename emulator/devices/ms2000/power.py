@@ -32,6 +32,9 @@ if TYPE_CHECKING:
     from emulator.devices.ms2000.scheduler import Timer
 
 CLOCK_MARK_S = 600.0
+#: positions are saved once the stage has rested this long (device seconds): a host moving in
+#: a loop then costs no disk write per move, and a kill -9 loses at most this much rest
+POSITION_SAVE_DELAY_S = 0.05
 CLOCK_MARK_CODE = 255
 IDENTITY_MISMATCH_CODE = 55
 #: characters of a rejected stored value's repr shown in its warning
@@ -50,6 +53,9 @@ class Power:
         self.positions_dirty = False
         self._saved_positions: tuple[int, ...] | None = None
         self._clock_timer: Timer | None = None
+        #: the pending check that saves positions at rest, and when they last changed
+        self._position_timer: Timer | None = None
+        self._flagged_at = 0.0
 
     # ---- factory values -----------------------------------------------------------------------
 
@@ -240,15 +246,39 @@ class Power:
         self._saved_positions = self._position_key()
 
     def persist_idle_positions(self, t: float) -> None:
-        """With a persistent store, positions are written whenever the stage comes to rest, so an
-        emulator killed without a power-off still restarts where it was (MS-111). Called at the end
-        of a model call that flagged `positions_dirty`; while something moves, the rest to come
-        flags it again."""
+        """With a persistent store, positions are written once the stage has rested for
+        `POSITION_SAVE_DELAY_S`, so an emulator killed without a power-off still restarts where it
+        was (MS-111). Called at the end of a model call that flagged `positions_dirty`; while
+        something moves, the rest to come flags it again. One timer serves a burst of moves."""
         self.positions_dirty = False
-        if not self.flash.persistent or any(a.traj.moving(t) for a in self.ctl.axes):
+        if not self.flash.persistent:
             return
-        if self._position_key() != self._saved_positions:
+        self._flagged_at = t
+        if self._position_timer is None:
+            self._position_timer = self.ctl.at(t + POSITION_SAVE_DELAY_S, self._save_if_rested)
+
+    def save_resting_positions(self, t: float) -> None:
+        """At shutdown: what the waiting check would save, saved now (a moving stage is not)."""
+        if self._position_timer is not None:
+            self._position_timer.cancel()
+            self._position_timer = None
+            self._save_at_rest(t)
+
+    def _save_if_rested(self, t: float) -> None:
+        self._position_timer = None
+        rested_until = self._flagged_at + POSITION_SAVE_DELAY_S
+        if t < rested_until and not self._moving(t):
+            self._position_timer = self.ctl.at(rested_until, self._save_if_rested)
+        else:
+            self._save_at_rest(t)
+
+    def _save_at_rest(self, t: float) -> None:
+        # while something moves, the rest to come flags the positions again
+        if not self._moving(t) and self._position_key() != self._saved_positions:
             self.save_positions(t)
+
+    def _moving(self, t: float) -> bool:
+        return any(a.traj.moving(t) for a in self.ctl.axes)
 
     def save_settings(self) -> None:
         """SS Z (MS-110, MS-111)."""

@@ -1,6 +1,7 @@
 """The controller's flash on a store the host hands in (MS-110, MS-111): the model never sees a
 file; a store that writes in the background (the daemon's) holds the `SS` reply until the data is
-on disk; positions are saved when the stage comes to rest, never per command."""
+on disk; positions are saved once the stage has come to rest (`POSITION_SAVE_DELAY_S`), never per
+command."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ from typing import Any
 import pytest
 
 from emulator.device import HostServices, StoreReport
+from emulator.devices.ms2000.power import POSITION_SAVE_DELAY_S
 from emulator.nvstore import StorageError
 from tests.unit.ms2000.conftest import Harness
 
@@ -140,12 +142,17 @@ def test_positions_written_once_when_the_stage_comes_to_rest_ms111(held: Harness
 
 def test_origin_changes_are_written_like_a_rest_ms111(held: Harness, store: HeldStore) -> None:
     held.cmd("H X=200")
+    assert store.waiting == [], "written once the positions have stayed put a moment"
+    held.wait(POSITION_SAVE_DELAY_S)
     assert len(store.waiting) == 1
     held.cmd("Z")
+    held.wait(POSITION_SAVE_DELAY_S)
     assert len(store.waiting) == 2
     held.cmd("SP X=1")
+    held.wait(POSITION_SAVE_DELAY_S)
     assert store.waiting[-1]["positions"] is None, "SP X=1 forgets the saved positions"
     held.cmd("~")
+    held.wait(POSITION_SAVE_DELAY_S)
     assert len(store.waiting) == 3, "a reset alone writes nothing (MS-112)"
 
 

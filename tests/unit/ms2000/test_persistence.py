@@ -15,6 +15,7 @@ from emulator import nvstore
 from emulator.clock import ManualClock
 from emulator.device import ControlError, HostServices, LineSettings
 from emulator.devices.ms2000.model import Ms2000Device
+from emulator.devices.ms2000.power import POSITION_SAVE_DELAY_S
 from emulator.nvstore import NvStore
 from emulator.runner import DeviceRunner
 from tests.support.memory_transport import MemoryTransport
@@ -118,9 +119,41 @@ def test_tv_110_savepos_bare_goes_silent_ms113_ms18(ms: Harness) -> None:
 def test_restart_after_kill_keeps_position_ms111(stored: Harness) -> None:
     stored.cmd("M X=1000")
     stored.idle()
+    stored.wait(POSITION_SAVE_DELAY_S)
     stored.restart()  # no power-off: as after kill -9
     assert stored.cmd("W X") == b":A 1000\r\n"
     assert stored.get("axes")["X"]["machine_counts"] == 4540
+
+
+def _saved_x(state_dir: Path) -> float | None:
+    files = list(state_dir.glob("*.json"))
+    if not files:
+        return None
+    positions = json.loads(files[0].read_text()).get("positions") or {}
+    return positions.get("X")
+
+
+def test_positions_are_saved_once_the_stage_has_rested_ms111(tmp_path: Path) -> None:
+    """A host moving in a loop costs no disk write per move: the positions are written once the
+    stage has rested `POSITION_SAVE_DELAY_S`, with the latest position."""
+    stored = Harness(state_dir=tmp_path)
+    for target in (100, 200, 300):
+        stored.cmd(f"M X={target}")
+        stored.idle()
+        stored.wait(POSITION_SAVE_DELAY_S / 4)
+    assert _saved_x(tmp_path) in (None, 0.0)  # nothing at rest long enough yet
+    stored.wait(POSITION_SAVE_DELAY_S)
+    assert _saved_x(tmp_path) == pytest.approx(0.03, abs=1e-5)  # 300 tenths of a µm, in mm
+
+
+def test_shutdown_saves_positions_not_yet_rested_long_enough_ms111(stored: Harness) -> None:
+    """A daemon that stops (SIGTERM) right after a move still restarts at the new position: its
+    runner's `close` calls `shut_down`, which saves what the waiting check would have saved."""
+    stored.cmd("M X=500")
+    stored.idle()
+    stored.dev.shut_down(stored.now)
+    stored.restart()
+    assert stored.cmd("W X") == b":A 500\r\n"
 
 
 def test_auto_saved_items_survive_restart_ms111(stored: Harness) -> None:
