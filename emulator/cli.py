@@ -12,6 +12,8 @@ from typing import Any
 import click
 
 from emulator import registry
+from emulator.cli_gcode import gcode
+from emulator.cli_plot import plot
 from emulator.clock import MAX_SCALE, MAX_STEP, MIN_SCALE, check_scale, check_step
 from emulator.control import ControlClient, ControlFailure, RequestError
 from emulator.daemon import Daemon, DaemonOptions
@@ -67,6 +69,10 @@ STEP_SECONDS = CheckedFloat(check_step, f"[0..{MAX_STEP:g}]")
 @click.version_option(package_name="stage-emu")
 def main() -> None:
     """Emulate Sutter MP-285 and ASI MS2000 controllers on pseudo-terminals."""
+
+
+main.add_command(gcode)
+main.add_command(plot)
 
 
 @main.command()

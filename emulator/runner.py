@@ -2,8 +2,9 @@
 output onto its ports, applies injected faults, logs traffic and line mismatches.
 
 With a traffic log the runner sets the model's `explain` and logs what the model reports: its notes
-on received bytes, and each emission's summary when its last byte leaves the port. It adds what it
-drops itself (emulator/trafficlog.py has the record format).
+on received bytes, each emission's summary when its last byte leaves the port, and its pushed events, `move`
+records among them (a model builds them only while explaining; they are not published). It adds what it drops
+itself (emulator/trafficlog.py has the record format).
 
 The runner is transport-agnostic and clock-agnostic. With a real or scaled clock and an asyncio loop
 it arms one timer for the next thing due (no polling); with a manual clock it runs whenever the test
@@ -21,7 +22,7 @@ from emulator.clock import Clock
 from emulator.device import Device, Emission, HostLine
 from emulator.line import REALISTIC, mismatches, settings_char_time
 from emulator.port import CORRUPT_MASK, Channel, Faults, fault_params, unsent
-from emulator.trafficlog import DeviceTraffic, TrafficLog
+from emulator.trafficlog import MOVE, DeviceTraffic, TrafficLog
 from emulator.transports.base import Transport
 
 log = logging.getLogger("stage_emu.runner")
@@ -112,6 +113,7 @@ class DeviceRunner:
         transport.open(_ChannelSink(self, ch))
 
     def close(self) -> None:
+        self.device.shut_down(self.pump())
         if self._timer is not None:
             self._timer.cancel()
         for ch in self.channels.values():
@@ -195,20 +197,24 @@ class DeviceRunner:
         """Bring the device and the ports up to the current device time, then re-arm the timer.
         Returns the device time it brought them to."""
         now = self.clock.now()
-        if at_least is not None:
-            now = max(now, at_least)
-        self._run_actions(now)
+        if at_least is not None and at_least > now:
+            now = at_least
+        if self._actions:
+            self._run_actions(now)
         self._refresh_pacing()
+        device = self.device
         for t, channel, data in self._due_input(now):
-            self.device.receive(data, t, channel)
-        self.device.advance(now)
+            device.receive(data, t, channel)
+        device.advance(now)
         self._collect_output()
-        self._write_due(now + self.clock.device_span(RELEASE_EARLY_S))
+        early = self.clock.device_span(RELEASE_EARLY_S)
+        self._write_due(now + early)
+        # what follows the write is off the round trip's path: the host is reading the reply by now
         if self._traffic is not None:
             self._traffic.flush()
         self._check_mismatch()
         self._resume_reading()
-        self._arm_timer()
+        self._arm_timer(early)
         return now
 
     def _due_input(self, now: float) -> list[tuple[float, str, bytes]]:
@@ -225,7 +231,8 @@ class DeviceRunner:
             elif arrived and self._traffic is not None:
                 data = b"".join(data for _, _, data in arrived)
                 self._traffic.lost_rx(arrived[-1][0], ch.name, data, "hang fault: the device hears nothing")
-        due.sort(key=lambda item: item[0])
+        if len(self.channels) > 1:
+            due.sort(key=lambda item: item[0])
         return due
 
     def _refresh_pacing(self) -> None:
@@ -245,13 +252,19 @@ class DeviceRunner:
         if self._traffic is not None:
             for note in self.device.take_rx_notes():
                 self._traffic.rx(note)
-        emissions = sorted(self.device.take_output(), key=lambda e: e.due)
+        emissions = self.device.take_output()
+        if len(emissions) > 1:
+            emissions.sort(key=lambda e: e.due)
         for emission in emissions:
             self._route(emission)
         events = self.device.take_events()
-        if self._on_event is not None:
-            for event in events:
-                self._on_event(self.name, event)
+        if events:
+            if self._traffic is not None:
+                self._traffic.events(self.device.now, events)
+            if self._on_event is not None:
+                for event in events:
+                    if event["ev"] != MOVE:  # traffic-log records: subscribers see the same with or without
+                        self._on_event(self.name, event)
 
     def _route(self, emission: Emission) -> None:
         ch = self.channels.get(emission.channel)
@@ -338,19 +351,22 @@ class DeviceRunner:
                     f"; {effect}" if effect else "",
                 )
 
-    def _next_due(self) -> float | None:
+    def _next_due(self, early: float) -> float | None:
+        """The earliest of: the device's next event, a port's next paced byte (output released
+        `early`), the next fault expiry."""
         times = [self.device.next_deadline()]
-        early = self.clock.device_span(RELEASE_EARLY_S)
         for ch in self.channels.values():
             out = ch.to_host.next_due()
             times.append(None if out is None else out - early)
             times.append(ch.from_host.next_due())
-        times.extend(t for t, _ in self._actions)
-        present = [t for t in times if t is not None]
-        return min(present) if present else None
+        if self._actions:
+            times.append(self._actions[0][0])
+        return min((t for t in times if t is not None), default=None)
 
-    def _arm_timer(self) -> None:
-        due = self._next_due()
+    def _arm_timer(self, early: float | None = None) -> None:
+        if early is None:
+            early = self.clock.device_span(RELEASE_EARLY_S)
+        due = self._next_due(early)
         if due == self._timer_due and self._timer is not None:
             return
         if self._timer is not None:

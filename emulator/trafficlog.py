@@ -18,6 +18,28 @@ One record per line, in device-time order (per device):
   or not taken: detached, hung, disconnected, dropped by a fault, the host not reading).
 - `summary`: the model's one-line account, e.g. `reply to c: position X=10 Y=0 Z=0 (µsteps)`.
 
+Device events (the control channel's pushed events) are records with `dir` `ev` and no port:
+
+    {"t": 1.25, "wall": 1712345678.2, "device": "stage", "dir": "ev", "ev": "ttl_out0", "level": 1}
+
+- `t`: the event's own device time (its `t`), else the device time it was collected at; the other
+  fields are the event's (`ttl_out0`, `array_arrival`, `scan_sync`, `move_complete`, ...).
+- `move` is where the stage goes, so a reader (`stage-emu plot`) need not re-parse host commands. A
+  model builds it only while explaining, and it goes only to the traffic log, not to control-channel
+  subscribers, whose events are the same with or without a log:
+
+      {"t": 2.0, ..., "dir": "ev", "ev": "move", "path": {"X": [[2.0, 0.0], [2.05, 25.0], [2.5, 1000.0]]}}
+
+  `path` maps each axis it covers to knots `[device time, µm]`, positions in the device's user
+  coordinates (what it reports, origin applied); the axis goes linearly from knot to knot and rests
+  at the last one. `cruise` (`{"X": µm/s}`, optional) says the axis keeps going at that speed after
+  its last knot (spin, VE, joystick). A record supersedes from its first knot on what earlier ones
+  said about its axes: a re-planned move gives a new path, a halt a single knot. The MS2000 writes
+  one per axis each time its planned path changes (each leg of a commanded move, SCAN leg, ARRAY
+  cell move, MULTIAXIS stretch, G-code segment, correction; a motion cut short); the MP-285 one for
+  all three axes per move (`m`, program vectors), halt, stop, or ROE turn (a halt's record is written
+  when the halted run ends, after its settle time, stamped with the halt's instant: a reader sorts).
+
 The log is a side channel: a disk that fills up or a file that cannot be written must never stop a
 device from answering. The first failure is logged once and traffic logging stops; SIGUSR1
 (`reopen`, as after log rotation) starts it again on a fresh file at the same path.
@@ -32,7 +54,7 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 from emulator.device import LOST, Emission, RxNote
 
@@ -40,6 +62,10 @@ log = logging.getLogger("stage_emu.traffic")
 
 RX = "rx"
 TX = "tx"
+#: a device event (`DeviceTraffic.events`)
+EV = "ev"
+#: the event of a `move` record
+MOVE = "move"
 
 
 class TrafficLog:
@@ -80,9 +106,15 @@ class TrafficLog:
             entry["kind"] = kind
         if summary:
             entry["summary"] = summary
+        self._write(entry)
+
+    def _write(self, entry: dict[str, Any]) -> None:
+        stream = self._stream
+        if stream is None:
+            return
         try:
-            self._stream.write(json.dumps(entry, ensure_ascii=False) + "\n")
-            self._stream.flush()
+            stream.write(json.dumps(entry, ensure_ascii=False) + "\n")
+            stream.flush()
         except OSError as exc:
             log.error(
                 "traffic log %s: cannot write (%s); traffic logging stopped, devices keep serving "
@@ -91,6 +123,13 @@ class TrafficLog:
                 exc.strerror or exc,
             )
             self._discard()
+
+    def event(self, t: float, device: str, event: dict[str, Any]) -> None:
+        if self._stream is None:
+            return
+        entry = {"t": round(t, 6), "wall": round(time.time(), 6), "device": device, "dir": EV}
+        entry.update((k, v) for k, v in event.items() if k != "t")
+        self._write(entry)
 
     def reopen(self) -> None:
         """Close and reopen the file (after rotation, or to resume after a write failure)."""
@@ -137,6 +176,14 @@ class DeviceTraffic:
         self._records: list[tuple[float, str, str, bytes, str, str | None]] = []
         #: per port, the emissions queued on its wire, in order (the pacer keeps one run each)
         self._sending: dict[str, list[_Sending]] = {}
+        #: device events gathered during a pump, with their device times
+        self._events: list[tuple[float, dict[str, Any]]] = []
+
+    def events(self, now: float, events: list[dict[str, Any]]) -> None:
+        """Device events drained at `now` (an event's own `t` when it has one)."""
+        for event in events:
+            t = event.get("t")
+            self._events.append((t if isinstance(t, (int, float)) else now, event))
 
     def rx(self, note: RxNote) -> None:
         self._records.append((note.t, note.channel, RX, note.data, note.kind, note.summary))
@@ -188,9 +235,20 @@ class DeviceTraffic:
             self._records.append((t, port, TX, unsent, LOST, summary))
 
     def flush(self) -> None:
-        if not self._records:
+        if not self._records and not self._events:
             return
         records, self._records = self._records, []
+        events, self._events = self._events, []
         records.sort(key=lambda record: record[0])
+        events.sort(key=lambda event: event[0])
+        pending = iter(events)
+        event = next(pending, None)
         for t, port, direction, data, kind, summary in records:
+            # traffic first at an instant: the command before what it set off
+            while event is not None and event[0] < t:
+                self._log.event(event[0], self._device, event[1])
+                event = next(pending, None)
             self._log.record(t, self._device, port, direction, data, summary, kind)
+        while event is not None:
+            self._log.event(event[0], self._device, event[1])
+            event = next(pending, None)

@@ -6,7 +6,7 @@ when a bound is exceeded (`make soak`; short forms of each attack run in `make t
 Attacks: flood (random bytes at full speed into every port), cycles (open/close every port),
 kill (kill -9 during `SS Z`, restart), subscriber (control client that never reads), signals,
 profiles (the hostile-profile corpus through `stage-emu validate`), fuzz (hypothesis examples per
-protocol model).
+protocol model), modules (hypothesis examples per MS2000 module-command property and build).
 """
 
 from __future__ import annotations
@@ -32,6 +32,8 @@ from scripts.soak.kill_save import kill_during_save  # noqa: E402
 from scripts.soak.probes import figure  # noqa: E402
 
 FUZZ_FILES = ("tests/unit/mp285/test_mp285_fuzz.py", "tests/unit/ms2000/test_fuzz.py")
+#: the firmware modules' commands with hostile items, on every build that carries them
+MODULE_FUZZ_FILES = ("tests/unit/ms2000/test_fuzz_modules.py",)
 #: a hostile profile must be refused within this much wall time and memory
 PROFILE_SECONDS = 1.0
 PROFILE_RSS_MB = 100.0
@@ -75,11 +77,13 @@ def _validate(path: Path) -> tuple[int, str, float, float]:
         return proc.returncode, err.read(), took, usage.ru_maxrss / 1024
 
 
-def fuzz(examples: int) -> Outcome:
-    out = Outcome(f"hypothesis examples per protocol model ({examples})")
+def fuzz(examples: int, files: tuple[str, ...], what: str) -> Outcome:
+    """The hypothesis properties of `files`, randomized, `examples` each (what `make test` runs as a
+    short derandomized set)."""
+    out = Outcome(f"hypothesis examples per {what} ({examples})")
     start = time.monotonic()
     result = subprocess.run(
-        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *FUZZ_FILES],
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", *files],
         cwd=ROOT,
         env={**os.environ, "STAGE_EMU_SOAK_EXAMPLES": str(examples)},
         capture_output=True,
@@ -111,7 +115,10 @@ def plan(args: argparse.Namespace, work: Path) -> dict[str, Callable[[], Outcome
         "subscriber": lambda: attacks.slow_subscriber(work / "subscriber", seconds=5 if quick else 60),
         "signals": lambda: attacks.stop_signals(work / "signals"),
         "profiles": lambda: hostile_profiles(work / "profiles"),
-        "fuzz": lambda: fuzz(200 if quick else args.examples),
+        "fuzz": lambda: fuzz(200 if quick else args.examples, FUZZ_FILES, "protocol model"),
+        "modules": lambda: fuzz(
+            100 if quick else args.examples, MODULE_FUZZ_FILES, "module-command property and build"
+        ),
     }
 
 

@@ -151,6 +151,11 @@ class MS2000:
         """Set settings (`set("S", X=1.5)`); `:N-<code>` raises."""
         self.command(format_command(command, values))
 
+    def set_speed(self, **mm_per_s: float) -> None:
+        """`S X=1.000000`: speeds always with six decimals, as the controller reads them back (MS-54);
+        values above an axis's maximum are clamped by the controller."""
+        self.command(format_command("S", [f"{axis}={value:.6f}" for axis, value in mm_per_s.items()]))
+
     # ---- motion -------------------------------------------------------------------------------
 
     def axes(self) -> tuple[str, ...]:

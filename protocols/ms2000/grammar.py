@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
 from enum import Enum
 
@@ -82,27 +83,42 @@ def _parse_number(text: str) -> float | None:
     return value if math.isfinite(value) else None
 
 
+def _parse_prefix(text: str) -> float | None:
+    """The number a value starts with, as C's `strtod` reads it: `50?` is 50, `1.5abc` 1.5, and a
+    value that does not start with a number (`abc`) has none (MS-25)."""
+    match = NUMBER.match(text)
+    if match is None:
+        return None
+    value = float(match.group())
+    return value if math.isfinite(value) else None
+
+
 def _is_letter(ch: str) -> bool:
     return ("A" <= ch <= "Z") or ("a" <= ch <= "z")
 
 
-def parse_items(args: str) -> list[Item]:
+def parse_items(args: str, numeric_prefix: bool = True) -> list[Item]:
     """Items of an argument text (MS-21…MS-26). The key of any item is the last letter before its
-    suffix, so `VX=4.69`, `ACX=25` and `WTX=0` address X (MS-22)."""
-    text = _SPACE_AFTER_EQ.sub("=", _SPACE_BEFORE_EQ.sub("=", normalize(args)))
+    suffix, so `VX=4.69`, `ACX=25` and `WTX=0` address X (MS-22). A set item's value is the number
+    it starts with (`numeric_prefix`, the firmware's reading), or only a value that is a number as
+    a whole (MS-25)."""
+    text = normalize(args)
+    if "=" in text:
+        text = _SPACE_AFTER_EQ.sub("=", _SPACE_BEFORE_EQ.sub("=", text))
     items: list[Item] = []
+    read_value = _parse_prefix if numeric_prefix else _parse_number
     for token in text.split(" "):
         if token:
-            items.append(_parse_token(token))
+            items.append(_parse_token(token, read_value))
     return items
 
 
-def _parse_token(token: str) -> Item:
+def _parse_token(token: str, read_value: Callable[[str], float | None]) -> Item:
     if "=" in token:
         key, _, value = token.partition("=")
         if not key or not _is_letter(key[-1]):
             return Item(Kind.MALFORMED, text=token)
-        return Item(Kind.SET, key[-1].upper(), _parse_number(value), token)
+        return Item(Kind.SET, key[-1].upper(), read_value(value), token)
     number = _parse_number(token)
     if number is not None:
         return Item(Kind.NUMBER, None, number, token)

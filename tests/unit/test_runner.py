@@ -208,12 +208,14 @@ def test_traffic_log_records_both_directions(tmp_path: Path) -> None:
     port.send(b"E ok\r")
     traffic.close()
     entries = [json.loads(line) for line in path.read_text().splitlines()]
-    assert [(e["dir"], e["hex"], e["kind"]) for e in entries] == [
+    assert [(e["dir"], e.get("hex"), e.get("kind")) for e in entries] == [
         ("rx", "45 20 6f 6b 0d", "frame"),
         ("tx", "6f 6b 0d", "reply"),
+        ("ev", None, None),  # the model's pushed event, after the traffic of its instant
     ]
     assert entries[0]["device"] == "probe-0" and entries[0]["summary"] == "line 'E ok'"
     assert entries[1]["summary"] == "reply to 'E ok'"
+    assert entries[2] == {**entries[2], "device": "probe-0", "ev": "line", "text": "E ok", "t": 0.0}
 
 
 # ---- bounds between host and device --------------------------------------------------------------
@@ -340,3 +342,14 @@ def test_paced_output_is_released_half_a_millisecond_early_on_a_running_clock() 
     wall[0] = 100.0 + first_byte_at - RELEASE_EARLY_S * 0.8
     runner.pump()
     assert port.take() == b"x"
+
+
+def test_close_lets_the_device_save_what_it_keeps_at_rest() -> None:
+    """`close` (daemon shutdown) brings the device up to now and calls its `shut_down` hook before
+    the ports go, so a save the model would make a little later is made now."""
+    h = make(FAST)
+    seen: list[float] = []
+    h.runner.device.shut_down = seen.append  # type: ignore[method-assign]
+    h.clock.advance(1.5)
+    h.runner.close()
+    assert seen == [1.5]

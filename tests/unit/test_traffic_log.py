@@ -36,8 +36,11 @@ class Logged:
     traffic: TrafficLog
 
     def records(self, **match: str) -> list[dict[str, Any]]:
-        """The records written so far (those with the given field values)."""
+        """The records written so far (those with the given field values); device events (`dir`
+        `ev`) only when asked for by `dir="ev"`."""
         entries = [json.loads(line) for line in self.path.read_text().splitlines()]
+        if "dir" not in match:
+            entries = [e for e in entries if e["dir"] != "ev"]
         return [e for e in entries if all(e.get(k) == v for k, v in match.items())]
 
     def trickle(self, data: bytes, gap: float) -> None:

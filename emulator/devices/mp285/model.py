@@ -35,6 +35,7 @@ from emulator.devices.mp285.commands import run_item
 from emulator.devices.mp285.faults import Crash, Roe, crash_signature, roe_turn
 from emulator.devices.mp285.line import Line
 from emulator.devices.mp285.motion import Halt, Program, Run, Stage, Xyz
+from emulator.devices.mp285.movelog import rest_record, run_record
 from emulator.devices.mp285.receiver import Receiver
 from emulator.devices.mp285.schema import Mp285Config, speed_limits
 from emulator.devices.mp285.states import FRAME_STATES, LISTENING, ROE_REFUSED, State
@@ -336,6 +337,8 @@ class Mp285Device(Device):
         self._run_cause = self._cause
         self._state = State.MOVING
         self._events.append({"ev": "move_started", "target_usteps": self.stage.reported(target)})
+        if self.notes.on:
+            self._events.append(run_record(self._run.motion, self.stage))
 
     def _on_final(self, t: float) -> None:
         run = self._run
@@ -343,6 +346,8 @@ class Mp285Device(Device):
         self._cause = self._run_cause
         self.stage.physical = run.position(t)
         halted = None if run.cause is None else run.cause.value
+        if halted is not None and self.notes.on:  # written now, stamped with the halt's instant
+            self._events.append(rest_record(run.motion_end, self.stage.physical, self.stage))
         self._events.append({"ev": "move_ended", "position_usteps": self.reported(t), "halted": halted})
         if run.program is not None and run.cause is None:
             self.continue_program(t, run.program)
@@ -428,6 +433,8 @@ class Mp285Device(Device):
         if self._run is not None:
             self.stage.physical = self._run.position(t)
             self._run = None
+            if self.notes.on:
+                self._events.append(rest_record(t, self.stage.physical, self.stage))
         self._drop_input(t, why)
 
     def _power_cycle(self, t: float) -> None:
@@ -488,6 +495,8 @@ class Mp285Device(Device):
                 f"{self.name}: the ROE acts only while the controller is idle (now {state.value})"
             )
         self.stage.turn(axis, clicks * self.status.template.roe_vari)
+        if self.notes.on:
+            self._events.append(rest_record(t, self.stage.physical, self.stage))
         if clicks:
             self.status.roe_negative = clicks < 0
         self._roe.last = t

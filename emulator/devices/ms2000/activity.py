@@ -17,6 +17,7 @@ class Activity(Enum):
     VELOCITY = "velocity"  # VE: `s`
     MANUAL = "manual"  # joystick, wheel: not busy
     CORRECT = "correct"  # drift correction: not busy
+    PATTERN = "pattern"  # a module's path (MULTIAXIS MOVES): `T`
 
 
-BUSY_ACTIVITIES = (Activity.MOVE, Activity.HOME, Activity.SPIN, Activity.VELOCITY)
+BUSY_ACTIVITIES = (Activity.MOVE, Activity.HOME, Activity.SPIN, Activity.VELOCITY, Activity.PATTERN)

@@ -1,4 +1,4 @@
-"""One motor axis: coordinates, limits, the motion in progress, drift correction and status.
+"""One motor axis: coordinates, limits, the motion in progress and status (holding position: drift.py).
 
 The physical position is a machine position in encoder counts (MS-49); the user position is
 `polarity × counts / C − origin` mm, reported in units of 1/UM mm (MS-46). Commanded moves go
@@ -10,10 +10,12 @@ limit or a new command (MS-71, MS-72, MS-83).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from emulator.devices.ms2000 import trajectory
 from emulator.devices.ms2000.activity import BUSY_ACTIVITIES, LIMIT_CODES, LOWER, UPPER, Activity
+from emulator.devices.ms2000.drift import ServoHold
 from emulator.devices.ms2000.settings import AxisAuto, AxisSettings
 from emulator.devices.ms2000.trajectory import Trajectory
 from protocols.rounding import round_half_away
@@ -23,11 +25,6 @@ if TYPE_CHECKING:
     from emulator.devices.ms2000.modules.host import AxisHost
     from emulator.devices.ms2000.scheduler import Timer
     from emulator.devices.ms2000.schema import Ms2000Axis
-
-#: drift-correction attempts allowed within the window (MS-61) and their spacing [choice]
-CORRECTION_ATTEMPTS = 18
-CORRECTION_WINDOW_S = 0.5
-CORRECTION_SPACING_S = 0.025
 
 
 class Axis:
@@ -61,10 +58,7 @@ class Axis:
         self.group: MoveGroup | None = None
         self.velocity_cmd = 0.0
         self.switch = {UPPER: False, LOWER: False}
-        self.hold = False
-        self.attempts = 0
-        self.window_start = -math.inf
-        self.correction: Timer | None = None
+        self.servo = ServoHold(self)
         self.wheel_goal: float | None = None
         self.ext_min = 0.0
         self.ext_max = 0.0
@@ -72,6 +66,9 @@ class Axis:
         self.ensync_mm: float | None = None
         self.ensync_side = 0
         self.distance_mm = 0.0
+        #: counts a module adds to the commanded path to give the physical position: planar
+        #: correction makes Z follow the plane while `W Z` stays in plane coordinates (MS-PC-2)
+        self.follow: Callable[[float], float] | None = None
 
     # ---- coordinates ---------------------------------------------------------------------------
 
@@ -81,6 +78,13 @@ class Axis:
 
     def pos(self, t: float) -> float:
         return self.traj.pos(t)
+
+    def physical(self, t: float) -> float:
+        """The encoder position: the commanded path plus what a module makes follow it (MS-PC-2)."""
+        return self.pos(t) + (self.follow(t) if self.follow is not None else 0.0)
+
+    def physical_target(self, t: float) -> float:
+        return self.target + (self.follow(t) if self.follow is not None else 0.0)
 
     def user_mm_of(self, counts: float) -> float:
         return self.s.polarity * counts / self.counts_per_mm - self.origin
@@ -183,27 +187,31 @@ class Axis:
 
     # ---- motion primitives ---------------------------------------------------------------------
 
-    def _cancel_timer(self) -> None:
+    def cancel_timer(self) -> None:
         if self.timer is not None:
             self.timer.cancel()
             self.timer = None
 
-    def _schedule(self, due: float, action: Any) -> None:
-        self._cancel_timer()
+    def schedule(self, due: float, action: Any) -> None:
+        self.cancel_timer()
         self.timer = self.host.at(due, action)
 
-    def _set_path(self, t: float, segments: list[trajectory.Segment]) -> None:
+    def set_path(self, t: float, segments: list[trajectory.Segment]) -> None:
         self.traj = Trajectory(t, self.pos(t), segments)
+        self.host.path_changed(self, t)
 
-    def _rest(self, t: float, x: float) -> None:
+    def rest(self, t: float, x: float) -> None:
+        cut = self.traj.end > t  # stopped before the planned end (HALT, a limit): the path changed
         self.traj = Trajectory.rest(t, x)
+        if cut:
+            self.host.path_changed(self, t)
         self.host.positions_changed()  # every end of motion passes here (MS-111)
 
     def stop(self, t: float) -> None:
         """Stop dead where the axis is (HALT, stall, MS-76, MS-88); the target follows."""
         self.sample(t)
-        self._cancel_timer()
-        self._rest(t, float(round_half_away(self.pos(t))))
+        self.cancel_timer()
+        self.rest(t, float(round_half_away(self.pos(t))))
         self.activity = Activity.IDLE
         self.legs = []
         self.pause_until = None
@@ -216,7 +224,7 @@ class Axis:
     def move_to(self, t: float, goal: float, activity: Activity = Activity.MOVE) -> None:
         """Commanded move to machine count `goal` (MS-51, MS-57, MS-58, MS-63, MS-66, MS-67)."""
         self.sample(t)
-        self._cancel_correction()
+        self.servo.cancel()
         x, v = self.pos(t), self.traj.vel(t)
         target, clamped = self.clamp(goal, x)
         self.target = target
@@ -245,24 +253,22 @@ class Axis:
         points.append(float(target))
         return points
 
-    def _speed_counts(self) -> float:
+    def speed_counts(self) -> float:
         return min(self.s.speed, self.max_speed) * self.counts_per_mm
 
-    def _accel_counts(self) -> float:
-        return self._speed_counts() / (self.s.accel_ms / 1000)
+    def accel_counts(self) -> float:
+        return self.speed_counts() / (self.s.accel_ms / 1000)
 
     def _next_leg(self, t: float, v: float = 0.0) -> None:
         goal = self.legs.pop(0)
-        self._set_path(
-            t, trajectory.plan(t, self.pos(t), v, goal, self._speed_counts(), self._accel_counts())
-        )
-        self._schedule(self.traj.end, lambda due, goal=goal: self._leg_end(due, goal))
+        self.set_path(t, trajectory.plan(t, self.pos(t), v, goal, self.speed_counts(), self.accel_counts()))
+        self.schedule(self.traj.end, lambda due, goal=goal: self._leg_end(due, goal))
         self.host.record_sample(self, t)
 
     def _leg_end(self, t: float, goal: float) -> None:
         self.timer = None
         self.sample(t)
-        self._rest(t, goal)
+        self.rest(t, goal)
         self.host.record_sample(self, t)
         if self.legs:
             self._next_leg(t)
@@ -281,7 +287,7 @@ class Axis:
             self._finish(t)
         elif settle + wait > 0:
             self.pause_until = t + settle + wait
-            self._schedule(self.pause_until, self._pause_end)
+            self.schedule(self.pause_until, self._pause_end)
         else:
             self._finish(t)
 
@@ -321,21 +327,21 @@ class Axis:
 
     def _open_ended(self, t: float, velocity_mm_s: float, activity: Activity, ramp_s: float) -> None:
         self.sample(t)
-        self._cancel_correction()
-        self._cancel_timer()
+        self.servo.cancel()
+        self.cancel_timer()
         self.pause_until = None
         self.legs = []
         x, v0 = self.pos(t), self.traj.vel(t)
         velocity = velocity_mm_s * self.counts_per_mm
         if velocity == 0 and (ramp_s == 0 or v0 == 0):
-            self._rest(t, float(round_half_away(x)))
+            self.rest(t, float(round_half_away(x)))
             self.activity = Activity.IDLE
             self.target = round_half_away(x)
             return
         self.activity = activity
-        self._set_path(t, trajectory.ramp_to(t, x, v0, velocity, ramp_s))
+        self.set_path(t, trajectory.ramp_to(t, x, v0, velocity, ramp_s))
         if velocity == 0:
-            self._schedule(self.traj.end, self._ramped_down)
+            self.schedule(self.traj.end, self._ramped_down)
             return
         end = UPPER if velocity > 0 else LOWER
         if self.at_limit(t, end):
@@ -344,13 +350,13 @@ class Axis:
         lo, hi = self.limit_counts()
         hit = self.traj.first_reach(hi if end == UPPER else lo, t)
         if hit is not None:
-            self._schedule(hit, lambda due: self._limit_stop(due, end))
+            self.schedule(hit, lambda due: self._limit_stop(due, end))
 
     def _ramped_down(self, t: float) -> None:
         self.timer = None
         self.sample(t)
         x = self.traj.pos(t)
-        self._rest(t, float(round_half_away(x)))
+        self.rest(t, float(round_half_away(x)))
         self.target = round_half_away(x)
         self.activity = Activity.IDLE
         self.host.resume_manual(self, t)
@@ -363,7 +369,7 @@ class Axis:
         x = self.pos(t)
         if not self.switch[end]:
             x = float(hi if end == UPPER else lo)
-        self._rest(t, float(round_half_away(x)))
+        self.rest(t, float(round_half_away(x)))
         self.target = round_half_away(x)
         self.activity = Activity.IDLE
         self.velocity_cmd = 0.0
@@ -375,103 +381,30 @@ class Axis:
         if self.activity not in (Activity.IDLE, Activity.MANUAL) or not self.enabled:
             return
         self.sample(t)
-        self._cancel_correction()
+        self.servo.cancel()
         base = self.wheel_goal if self.wheel_goal is not None else self.pos(t)
         goal, _ = self.clamp(base + delta_counts, self.pos(t))
         self.wheel_goal = float(goal)
         self.activity = Activity.MANUAL
         v = self.traj.vel(t)
-        self._set_path(
-            t, trajectory.plan(t, self.pos(t), v, goal, self._speed_counts(), self._accel_counts())
-        )
-        self._schedule(self.traj.end, self._nudged)
+        self.set_path(t, trajectory.plan(t, self.pos(t), v, goal, self.speed_counts(), self.accel_counts()))
+        self.schedule(self.traj.end, self._nudged)
 
     def _nudged(self, t: float) -> None:
         self.timer = None
         self.sample(t)
         goal = self.wheel_goal if self.wheel_goal is not None else self.pos(t)
-        self._rest(t, goal)
+        self.rest(t, goal)
         self.wheel_goal = None
         self.target = round_half_away(goal)
         self.activity = Activity.IDLE
         self.host.resume_manual(self, t)
 
-    # ---- disturbances, drift correction, runaway (MS-61, MS-62, MS-88) ------------------------
+    # ---- disturbances, runaway, dead axis (MS-61, MS-62, MS-88) --------------------------------
 
     def disturb(self, t: float, um: float, hold: bool) -> None:
-        self.sample(t)
-        if um == 0:
-            self.hold = False
-            self._consider_correction(t)
-            return
-        displacement = um / 1000 * self.counts_per_mm
-        if self.activity in (Activity.IDLE, Activity.CORRECT) and not self.paused(t):
-            self._cancel_timer()
-            self.activity = Activity.IDLE
-            self._rest(t, float(round_half_away(self.pos(t) + displacement)))
-            self.hold = hold
-            self._check_runaway(t, abs(self.pos(t) - self.target))
-            self.attempts = 0
-            self.window_start = t
-            self._consider_correction(t)
-        else:
-            self._check_runaway(t, abs(displacement))
-
-    def _servo_active(self) -> bool:
-        return self.enabled and self.s.maintain != 5
-
-    def _check_runaway(self, t: float, error_counts: float) -> None:
-        """Beyond RU the motor is disabled: whatever the axis was doing stops there (MS-62)."""
-        if self._servo_active() and error_counts / self.counts_per_mm > self.s.runaway:
-            self.host.disable_motor(self, t)
-            self._cancel_correction()
-            self.host.log_error(30 + self.index)
-
-    def _consider_correction(self, t: float) -> None:
-        if not self._servo_active() or self.correction is not None:
-            return
-        error_mm = abs(self.pos(t) - self.target) / self.counts_per_mm
-        if error_mm <= self.s.drift_error:
-            return
-        unlimited = self.s.maintain in (1, 2)
-        if not unlimited and self.attempts >= CORRECTION_ATTEMPTS:
-            return
-        self.correction = self.host.at(t + self.host.servo_s, self._attempt)
-
-    def _attempt(self, t: float) -> None:
-        self.correction = None
-        if not self._servo_active() or self.activity not in (Activity.IDLE, Activity.CORRECT):
-            return
-        if t - self.window_start > CORRECTION_WINDOW_S and self.s.maintain not in (1, 2):
-            self.window_start = t
-            self.attempts = 0
-        self.attempts += 1
-        if self.hold:
-            if self.s.maintain in (1, 2) or self.attempts < CORRECTION_ATTEMPTS:
-                self.correction = self.host.at(t + CORRECTION_SPACING_S, self._attempt)
-            else:
-                self.host.log_error(60 + self.index)
-            return
-        self.sample(t)
-        self.activity = Activity.CORRECT
-        goal = float(self.target)
-        self._set_path(
-            t, trajectory.plan(t, self.pos(t), 0.0, goal, self._speed_counts(), self._accel_counts())
-        )
-        self._schedule(self.traj.end, lambda due: self._corrected(due, goal))
-
-    def _corrected(self, t: float, goal: float) -> None:
-        self.timer = None
-        self.sample(t)
-        self._rest(t, goal)
-        self.activity = Activity.IDLE
-
-    def _cancel_correction(self) -> None:
-        if self.correction is not None:
-            self.correction.cancel()
-            self.correction = None
-        if self.activity is Activity.CORRECT:
-            self.activity = Activity.IDLE
+        """An outside force displaces the axis by `um` (held there while `hold`), see drift.py."""
+        self.servo.disturb(t, um, hold)
 
     def stall(self, t: float) -> bool:
         """Stop a moving axis dead and log AXIS DEAD (MS-88); False when it was not moving."""
@@ -481,8 +414,55 @@ class Axis:
         self.host.log_error(20 + self.index)
         return True
 
+    # ---- module-driven motion: frames and paths (MS-PC-2, MS-MULTI-1) --------------------------
+
+    def reframe(self, t: float, delta: float) -> None:
+        """Re-express the commanded frame `delta` counts further (planar correction switched on or
+        off, its plane re-referenced): position, target and a move in progress shift together, so
+        the physical path does not jump (MS-PC-2)."""
+        self.sample(t)
+        moving = self.traj.moving(t)
+        self.traj = self.traj.shifted(delta)
+        self.target = round_half_away(self.target + delta)
+        self.legs = [goal + delta for goal in self.legs]
+        shift_mm = self.s.polarity * delta / self.counts_per_mm
+        self.ext_min += shift_mm
+        self.ext_max += shift_mm
+        if self.activity is Activity.CORRECT:
+            # the correction under way aims at the old frame: give it up, reconsider in the new one
+            self.cancel_timer()
+            self.servo.cancel()
+            self.rest(t, self.pos(t))
+            self.servo.consider(t)
+        elif self.wheel_goal is not None:
+            self.wheel_goal += delta
+            self.nudge(t, 0.0)
+        elif moving and self.activity in (Activity.MOVE, Activity.HOME):
+            # a leg's end lands on the goal it was planned with: plan again to the shifted target
+            self.move_to(t, self.target, self.activity)
+
+    def run_path(self, t: float, segments: list[trajectory.Segment]) -> None:
+        """Follow a module's path from the current position (MULTIAXIS MOVES): busy as a pattern
+        until `end_path`; the module appends the next stretch before this one runs out."""
+        self.sample(t)
+        self.servo.cancel()
+        self.cancel_timer()
+        self.pause_until = None
+        self.hold_until = None
+        self.legs = []
+        self.wheel_goal = None
+        self.velocity_cmd = 0.0
+        self.activity = Activity.PATTERN
+        self.set_path(t, segments)
+        self.target = round_half_away(self.traj.x_end)
+
+    def end_path(self, t: float) -> None:
+        """The pattern is over: the axis rests where it is and manual input may take it again."""
+        self.stop(t)
+        self.host.resume_manual(self, t)
+
     def power_off(self, t: float) -> None:
         """Motion stops and every timer of the axis is dropped."""
         self.stop(t)
-        self._cancel_correction()
-        self.hold = False
+        self.servo.cancel()
+        self.servo.hold = False

@@ -50,6 +50,8 @@ class Buttons:
         self.flags = 0
         self.fast = True
         self.toggled_at: float | None = None
+        #: how long the press being released was held (ms): modules may need more than its class
+        self.held_ms = 0.0
 
     def reset(self) -> None:
         self.flags = 0
@@ -68,6 +70,7 @@ class Buttons:
 
     def release(self, name: str, ms: float, t: float) -> None:
         press = classify(ms)
+        self.held_ms = ms
         shift = FLAG_SHIFT[name]
         self.flags = (self.flags & ~(3 << shift)) | (PRESS_CODES[press] << shift)
         if self.ctl.card.vb_flags & 2 and name == "joystick":

@@ -87,11 +87,12 @@ def info_block(ctl: Ms2000Device, axis: Axis, t: float) -> list[str]:
         ),
         _row(
             _item("Current pos", fixed(axis.user_mm_of(position), 4), " (mm)"),
-            _item("enc position", fixed(position, 0)),
+            _item("enc position", fixed(axis.physical(t), 0)),
         ),
         _row(
             _item("Target pos", fixed(axis.user_mm_of(axis.target), 4), " (mm)"),
-            _item("enc target", str(axis.target)),
+            # the encoder's target includes planar correction; "Target pos" is in plane coordinates
+            _item("enc target", fixed(axis.physical_target(t), 0)),
         ),
         _row(_item("enc pos error", fixed(axis.target - position, 0)), _item("EEsum", "0")),
         _row(_item("Lst Stle Time", settle, " (ms)"), _item("Av Settle Tim", settle, " (ms)")),

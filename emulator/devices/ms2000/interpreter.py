@@ -24,6 +24,8 @@ if TYPE_CHECKING:
     from emulator.devices.ms2000.model import Ms2000Device
     from emulator.devices.ms2000.scheduler import Timer
 
+_CONTROL_BYTE = bytes((proto.CONTROL,))
+
 #: the 0xFF control sequences (MS-119), for the traffic log
 CONTROL_SEQUENCES = {
     0x42: "enter low-level mode",
@@ -64,12 +66,42 @@ class Interpreter:
             self._junk = False
             self._drop_line(t, STRAY, "junk from a mismatched host, dropped (MS-4)")
             self.ctl.low.drop(t, STRAY, "junk from a mismatched host, dropped (MS-4)")
-        for index, byte in enumerate(data):
+        index = 0
+        while index < len(data):
             if self.silenced:
                 if self.ctl.notes.on:
                     self.ctl.notes.rx(t, LOST, data[index:], "silent after SP (MS-113)")
-                break
-            self._byte(byte, t)
+                return
+            if self._ff or self.low_level:
+                self._byte(data[index], t)
+                index += 1
+            else:
+                index = self._text(data, index, t)
+
+    def _text(self, data: bytes, start: int, t: float) -> int:
+        """ASCII mode: take `data[start:]` up to and including the first CR or 0xFF, a run at a time
+        rather than byte by byte (a whole command usually arrives in one read); returns where it
+        stopped. The same as `_byte` for each of those bytes."""
+        end = len(data)
+        stop = data.find(b"\r", start)
+        if stop < 0:
+            stop = end
+        control = data.find(_CONTROL_BYTE, start, stop)
+        if control >= 0:
+            stop = control
+        if stop > start:
+            run = data[start:stop]
+            if self.ctl.notes.on:
+                self._heard += run
+            room = self.ctl.knobs.max_line - len(self._line)
+            if len(run) > room:
+                self._overflow = True
+                run = run[: max(room, 0)]
+            self._line += run
+        if stop == end:
+            return end
+        self._byte(data[stop], t)
+        return stop + 1
 
     def _drop_line(self, t: float, kind: str, why: str) -> None:
         """The partial line is discarded (noted as `kind` for `why`)."""
@@ -174,7 +206,8 @@ class Interpreter:
         handler = self.handlers.get(parts.spec.key) if parts.spec is not None else None
         if parts.spec is None or handler is None:
             return ctl.error(ErrorCode.UNKNOWN_COMMAND)
-        call = Call(parts.spec, tuple(proto.parse_items(parts.args)), parts.args, t)
+        items = proto.parse_items(parts.args, ctl.knobs.number_values == "prefix")
+        call = Call(parts.spec, tuple(items), parts.args, t)
         try:
             return handler(call)
         except CommandError as exc:

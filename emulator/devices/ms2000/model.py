@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 from emulator.device import (
@@ -40,9 +40,11 @@ from emulator.devices.ms2000.commands import BaseCommands
 from emulator.devices.ms2000.interpreter import Interpreter
 from emulator.devices.ms2000.lowlevel import LowLevel
 from emulator.devices.ms2000.modules.moduleset import ModuleSet
+from emulator.devices.ms2000.movelog import path_record
 from emulator.devices.ms2000.power import Power
 from emulator.devices.ms2000.scheduler import Scheduler, Timer
 from emulator.devices.ms2000.schema import Ms2000Config, baud_of
+from emulator.devices.ms2000.serial_line import SerialLine
 from emulator.devices.ms2000.settings import CardAuto
 from emulator.devices.ms2000.surface import ControlSurface
 from emulator.devices.ms2000.ttl import BASE_OUT_MODES, Ttl
@@ -106,7 +108,7 @@ class Ms2000Device(Device):
         handlers.update(self.modules.handlers())
         self.shapes = dict(proto.QUERY_SHAPES)
         self.shapes.update(self.modules.query_shapes())
-        self.interpreter = Interpreter(self, handlers)
+        self.interpreter = Interpreter(self, self.modules.guarded(handlers))
         self.surface = ControlSurface(self)
         self.error_log: deque[int] = deque(maxlen=ERROR_LOG_SIZE)
         self.trajectory_log: deque[str] = deque(maxlen=TRAJECTORY_SIZE)
@@ -122,11 +124,7 @@ class Ms2000Device(Device):
         self.az_fail: set[str] = set()
         self.last_relative: list[tuple[str, float | None]] = []
         self.booted_at = now
-        self._host_seen: HostLine | None = None
-        self._host_declared: dict[str, Any] = {}
-        self._host_merged: HostLine | None = None
-        self._line_key: tuple[int, float] | None = None
-        self._line = LineSettings()
+        self.line = SerialLine(self)
         self.power.power_up(now, cold=True)
 
     # ---- Device contract: time ----------------------------------------------------------------
@@ -148,57 +146,22 @@ class Ms2000Device(Device):
     # ---- the line (MS-1…MS-12, MS-119) --------------------------------------------------------
 
     def line_settings(self, channel: str = MAIN) -> LineSettings:
-        # asked several times per byte: one object per (baud, stop bits) lets callers compare cheaply
-        key = (self.baud, self.card.stop_bits)
-        if key != self._line_key:
-            self._line_key = key
-            self._line = LineSettings(self.baud, 8, "none", self.card.stop_bits, False, False)
-        return self._line
+        return self.line.own()
 
     def line_changed(self, host: HostLine | None, now: float, channel: str = MAIN) -> None:
-        self._host_seen = host
-        # the transport now reports what it can see; declarations of what it cannot see stay
-        self._host_declared = (
-            {}
-            if host is None
-            else {k: v for k, v in self._host_declared.items() if k in ("data_bits", "parity")}
-        )
-        self._merge_host()
+        self.line.host_changed(host)
 
     def declare_host(self, settings: dict[str, Any]) -> None:
-        """Host settings the transport cannot see, declared on the control channel (MS-4)."""
-        self._host_declared.update(settings)
-        self._merge_host()
-
-    def _merge_host(self) -> None:
-        """What the host uses: seen and declared settings, merged once per change (read per byte)."""
-        if self._host_seen is None and not self._host_declared:
-            self._host_merged = None
-        else:
-            self._host_merged = replace(self._host_seen or HostLine(), **self._host_declared)
+        self.line.declare(settings)
 
     def host_line(self) -> HostLine | None:
-        return self._host_merged
+        return self.line.host()
 
-    def garbles(self, host: HostLine | None = None) -> bool:
-        host = host or self.host_line()
-        if host is None or self.knobs.line_mismatch != "garble":
-            return False
-        own = self.line_settings()
-        return any(
-            getattr(host, n) is not None and getattr(host, n) != getattr(own, n)
-            for n in ("baud", "data_bits", "parity")
-        )
+    def garbles(self) -> bool:
+        return self.line.garbles()
 
     def mismatch_effect(self, host: HostLine, channel: str = MAIN) -> str:
-        own = self.line_settings()
-        if self.garbles(host):
-            return "traffic will be garbled (line_mismatch=garble)"
-        if any(getattr(host, n) not in (None, getattr(own, n)) for n in ("baud", "data_bits", "parity")):
-            return "the mismatch is ignored (line_mismatch=ignore)"
-        if host.stop_bits not in (None, own.stop_bits):
-            return "harmless: the controller samples only the first stop bit"
-        return "harmless: the controller ignores flow control"
+        return self.line.mismatch_effect(host)
 
     def _receive(self, data: bytes, now: float, channel: str) -> None:
         if self.interpreter.silenced:
@@ -229,12 +192,19 @@ class Ms2000Device(Device):
     def control_names(self) -> dict[str, list[str]]:
         return self.surface.names()
 
+    def shut_down(self, now: float) -> None:
+        self.power.save_resting_positions(now)
+
     def forget_nonvolatile(self) -> None:
         self.power.forget()
 
     def positions_changed(self) -> None:
         """Something moved positions or their origin: save them at the next rest (MS-111)."""
         self.power.positions_dirty = True
+
+    def limits_changed(self) -> None:
+        """Soft limits changed outside SL/SU (SEARCH INDEX): remembered at once (MS-65)."""
+        self.power.save_auto()
 
     # ---- output -------------------------------------------------------------------------------
 
@@ -263,25 +233,18 @@ class Ms2000Device(Device):
             data = garble(data)
             kind = GARBLED
             if summary is not None:
-                summary = (
-                    f"garbled: {self._mismatch()} the host reads {proto.shown(data)} of {summary} (MS-4)"
-                )
+                sides = self.line.describe_mismatch()
+                summary = f"garbled: {sides} the host reads {proto.shown(data)} of {summary} (MS-4)"
         self._outbox.append(Emission(t, data, kind=kind, summary=summary))
 
     def _garble_in(self, data: bytes, t: float) -> bytes:
         """MS-4: what the controller reads of bytes a mismatched host sent."""
         junk = garble(data)
         if self.notes.on:
-            summary = (
-                f"garbled: {self._mismatch()} the device reads {data.hex(' ')} as {junk.hex(' ')} (MS-4)"
-            )
+            sides = self.line.describe_mismatch()
+            summary = f"garbled: {sides} the device reads {data.hex(' ')} as {junk.hex(' ')} (MS-4)"
             self.notes.rx(t, GARBLED, junk, summary)
         return junk
-
-    def _mismatch(self) -> str:
-        host = self.host_line()
-        seen = "?" if host is None else host.filled(self.line_settings()).describe()
-        return f"host at {seen}, device at {self.line_settings().describe()}:"
 
     def unsolicited(self, text: str, t: float) -> None:
         """An unsolicited line with the current terminator (MS-18, MS-96)."""
@@ -302,6 +265,11 @@ class Ms2000Device(Device):
         dac = 128 + round(127 * max(-1.0, min(1.0, velocity / vmax))) if vmax else 128
         ms = round_half_away((t - self.booted_at) * 1000)
         self.trajectory_log.append(f"{ms} {axis.letter} {axis.target} {round_half_away(axis.pos(t))} {dac}")
+
+    def path_changed(self, axis: Axis, t: float) -> None:
+        """A `move` record (movelog.py), built only while a traffic log is kept."""
+        if self.notes.on:
+            self.push_event(path_record(axis, t))
 
     # ---- axes and moves -----------------------------------------------------------------------
 
@@ -334,6 +302,17 @@ class Ms2000Device(Device):
             axis.move_to(t, goal, activity)
         if group.axes:
             self.moves += 1
+
+    def start_scan_move(self, axis: Axis, goal: float, t: float, speed_mm_s: float | None = None) -> None:
+        """A SCAN leg (MS-SCAN-4): busy like homing (one leg, right status character `B`, no OUT0
+        pulse). The leg is planned at once, so `speed_mm_s` stands in for `S` only meanwhile."""
+        speed = axis.s.speed
+        if speed_mm_s is not None:
+            axis.s.speed = speed_mm_s
+        try:
+            self.start_moves([(axis, goal)], t, Activity.HOME)
+        finally:
+            axis.s.speed = speed
 
     def leave_group(self, axis: Axis) -> None:
         if axis.group is not None:
@@ -377,6 +356,7 @@ class Ms2000Device(Device):
 
     def zero_all(self, t: float) -> None:
         """ZERO (MS-70): every axis reads 0, nothing moves."""
+        self.modules.zeroing(t)
         for axis in self.axes:
             axis.sample(t)
             axis.origin += axis.user_mm(t)
@@ -401,6 +381,14 @@ class Ms2000Device(Device):
             axis.stop(t)
 
     # ---- manual inputs (MS-83, MS-84) ---------------------------------------------------------
+
+    @property
+    def button_held_ms(self) -> float:
+        return self.buttons.held_ms
+
+    @property
+    def joystick_fast(self) -> bool:
+        return self.buttons.fast
 
     def manual_inverted(self, axis: Axis) -> bool:
         switch = {2: "sw8", 3: "sw7"}.get(axis.s.input_device)
@@ -477,3 +465,12 @@ class Ms2000Device(Device):
         """Axes reported by IN0 mode 5: a module's selection (RING BUFFER's `RM Y`, MS-RB-4) or all."""
         mask = self.modules.report_mask()
         return list(self.axes) if mask is None else [a for a in self.axes if mask & (1 << a.index)]
+
+    def rm_x_values(self) -> set[int]:
+        return self.modules.rm_x_values()
+
+    def rm_x(self, value: int, t: float) -> None:
+        self.modules.rm_x(value, t)
+
+    def playback_mode(self) -> int | None:
+        return self.modules.playback_mode()

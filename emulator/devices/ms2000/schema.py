@@ -178,6 +178,13 @@ class Ms2000Knobs(Schema):
     max_line: int = setting(
         Int(1, 65536), 256, "MS-9", "longest command line in bytes; longer lines reply :N-6"
     )
+    number_values: str = setting(
+        Choice(("prefix", "whole")),
+        "prefix",
+        "MS-25",
+        "a value is the number it starts with, as C's strtod reads it (`X=50?` is 50), or only a "
+        "value that is a number as a whole (else missing, 0)",
+    )
     ack_trailing_space: bool = setting(Bool(), False, "MS-17", "acknowledge as `:A ` instead of `:A`")
     reply_shape_overrides: dict[str, str] = setting(
         MapOf(Str(), Choice(SHAPE_NAMES)),
@@ -206,6 +213,9 @@ class Ms2000Knobs(Schema):
     )
     info_absent_axis: str = setting(Choice(("silent", "error")), "silent", "MS-107", "INFO of an absent axis")
     vb_silent: bool = setting(Bool(), False, "MS-109", "VB sets produce no reply")
+    knob_speeds_need_module: bool = setting(
+        Bool(), False, "MS-KNOB-1", "JS F/T (side-knob speeds) reply :N-2 unless XY KNOBS is in the build"
+    )
 
 
 DEFAULT_AXES = {

@@ -40,6 +40,8 @@ def right_char(axis: Axis, t: float) -> str:
         return "B"
     if axis.activity in (Activity.SPIN, Activity.VELOCITY):
         return "s"
+    if axis.activity is Activity.PATTERN:
+        return "T"  # MS-MULTI-2
     return " "
 
 

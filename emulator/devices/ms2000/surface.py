@@ -45,8 +45,8 @@ class ControlSurface:
         for axis in ctl.axes:
             axis.sample(t)
             state[axis.letter] = {
-                "machine_counts": round_half_away(axis.pos(t)),
-                "target_counts": axis.target,
+                "machine_counts": round_half_away(axis.physical(t)),
+                "target_counts": round_half_away(axis.physical_target(t)),
                 "user_mm": axis.user_mm(t),
                 "target_user_mm": axis.user_mm_of(axis.target),
                 "min_user_mm": axis.ext_min,

@@ -10,7 +10,7 @@ machine encoder counts (floats while moving), times device seconds.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 _EPS = 1e-12
 
@@ -53,6 +53,12 @@ class Trajectory:
     @classmethod
     def rest(cls, t: float, x: float) -> Trajectory:
         return cls(t, x)
+
+    def shifted(self, delta: float) -> Trajectory:
+        """The same path `delta` counts further: a change of frame, not a motion (MS-PC-2)."""
+        return Trajectory(
+            self.start, self.x_start + delta, [replace(s, x0=s.x0 + delta) for s in self.segments]
+        )
 
     @property
     def end(self) -> float:

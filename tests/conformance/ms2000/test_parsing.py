@@ -83,3 +83,26 @@ def test_failed_validation_applies_nothing(ms: Host) -> None:
 def test_words_and_items_beyond_the_vectors(ms: Host, line: bytes, reply: bytes) -> None:
     """Beside TV-8 and TV-30: an alias, a split word, a malformed item, a non-numeric value."""
     ms.ask(line, reply)
+
+
+@pytest.mark.parametrize(
+    ("steps"),
+    [
+        # a host in the field sends a query mark after the value and expects the intensity set
+        [(b"LED X=50? \r", ACK), (b"LED X?\r", b"X=50 :A\r\n")],
+        [(b"S X=1.5abc\r", ACK), (b"S X?\r", b":A X=1.500000\r\n")],
+        [(b"S X=2.5e-1x\r", ACK), (b"S X?\r", b":A X=0.250000\r\n")],
+        [(b"S X=-.5e\r", b":N-4\r\n")],  # -0.5: out of range like `S X=-0.5`
+    ],
+)
+def test_ms25_value_is_its_numeric_prefix(ms: Host, steps: list[tuple[bytes, bytes]]) -> None:
+    """MS-25 (field correction): the firmware reads a value as C's `strtod` does, the number it
+    starts with; `abc` has none and reads as 0 (TV-30 still holds)."""
+    ms.run(steps)
+
+
+def test_ms25_whole_number_values_by_knob(connect: Callable[..., Host]) -> None:
+    """MS-25, knob `number_values: whole`: only a value that is a number as a whole counts; `50?`
+    is then missing, which is 0."""
+    host = connect(overrides={"knobs": {"number_values": "whole"}})
+    host.run([(b"LED X=50? \r", ACK), (b"LED X?\r", b"X=0 :A\r\n")])

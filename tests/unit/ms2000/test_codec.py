@@ -75,6 +75,24 @@ def test_items_grammar_ms21_to_ms26(args: str, expected: list[tuple[str, str | N
     assert got == expected
 
 
+@pytest.mark.parametrize(
+    ("value", "prefix", "whole"),
+    [
+        ("50?", 50.0, None),
+        ("1.5abc", 1.5, None),
+        ("abc", None, None),
+        ("-.5e", -0.5, None),
+        ("2e3x", 2000.0, None),
+        ("1e999", None, None),  # not finite: no number
+        ("+7", 7.0, 7.0),
+        ("", None, None),
+    ],
+)
+def test_set_value_is_its_numeric_prefix_ms25(value: str, prefix: float | None, whole: float | None) -> None:
+    assert p.parse_items(f"X={value}")[0].value == prefix
+    assert p.parse_items(f"X={value}", numeric_prefix=False)[0].value == whole
+
+
 def test_command_line_encoder() -> None:
     assert p.command_line("M", {"X": 1000, "Y": -505}) == b"M X=1000 Y=-505\r"
     assert p.command_line("S", {"X": 4.69, "Y": None}) == b"S X=4.690000 Y?\r"

@@ -319,6 +319,9 @@ class SettingsCommands(CommandSet):
                 "KNOB_MULT",
             ),
         }
+        if self.ctl.knobs.knob_speeds_need_module and "XY KNOBS" not in self.ctl.cfg.modules:
+            # MS-KNOB-1 other reading: only builds with the side knobs define F and T (MS-30)
+            del params["F"], params["T"]
         return self._settings(call, params, PSEUDO_ORDER)
 
     def rtime(self, call: Call) -> Reply:
@@ -393,6 +396,7 @@ class SettingsCommands(CommandSet):
                 within(0, 6, integer=True),
             ),
         }
+        params.update(ctl.modules.extra_params(call.key))  # `VB T` with NO CHANGE SETTINGS (MS-109)
         reply = self._settings(call, params, PSEUDO_ORDER)
         if ctl.knobs.vb_silent and reply == ctl.ack():
             return SILENT

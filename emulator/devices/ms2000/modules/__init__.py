@@ -14,10 +14,14 @@ controller in its own file:
   `provides_in0_interrupt`: it is the IN0 interrupt service (INO_INT) that non-zero modes need;
 - `button_priority`, `button()`, `button_functions()`: front-panel presses it claims (MS-85) and
   `BE F` function numbers it implements (MS-86);
-- `observable` / `observe()`, `inputs` / `control_input()`: control-channel vocabulary;
+- `observable` / `observe()` (more names: `observables()`), `inputs` / `control_input()`:
+  control-channel vocabulary;
 - `lcd_segment()`, `reset()`, `halt()`, and the event hooks `in0_trigger()`, `in0_mode_changed()`,
   `out0_mode_changed()`, `out0_level()`, `out0_pwm()`, `ttl_trailing_value()`, `move_complete()`,
-  `report_mask()`.
+  `zeroing()`, `report_mask()`;
+- `extra_params()`: letters added to a base settings command; `refuse()`: a veto on any command.
+- `rm_x_values` / `rm_x()`: `RM X=` values it serves besides clearing (ARRAY's `RM X=1`,
+  MS-ARRAY-6); `playback_mode()`: the ring buffer's `RM F`, for modules that follow it (MS-ARRAY-5).
 
 A module sees the controller only as a `ModuleHost` (modules/host.py), and only the controller's
 `ModuleSet` (modules/moduleset.py) calls its hooks, in the order documented there. Adding a module
@@ -32,7 +36,7 @@ from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
 from emulator.device import ControlError
-from emulator.devices.ms2000.calls import Call, Pending, Reply
+from emulator.devices.ms2000.calls import Call, Param, Pending, Reply
 from emulator.schema import Field
 from protocols.ms2000 import Shape
 
@@ -53,6 +57,8 @@ class Module:
     in0_modes: ClassVar[frozenset[int]] = frozenset()
     provides_in0_interrupt: ClassVar[bool] = False
     out0_modes: ClassVar[frozenset[int]] = frozenset()
+    #: `RM X=` values besides 0 (clear) that the module serves through `rm_x()` (MS-RB-4)
+    rm_x_values: ClassVar[frozenset[int]] = frozenset()
     #: lower claims buttons first (MS-85: SEQUENCER, CRISP, SCAN, ARRAY, AUTOFOCUS, PLANAR, RING BUFFER)
     button_priority: ClassVar[int] = 100
     observable: ClassVar[str | None] = None
@@ -75,6 +81,11 @@ class Module:
 
     def observe(self, now: float) -> Any:
         return None
+
+    def observables(self) -> dict[str, Callable[[float], Any]]:
+        """Control-channel observables: `observable` read by `observe()`; a module publishing more
+        than one name (TRACER: `tracer`, `analog_out_v`) extends this."""
+        return {self.observable: self.observe} if self.observable else {}
 
     def control_input(self, name: str, params: dict[str, Any], now: float) -> Any:
         raise ControlError(f"{self.name}: no input {name!r}")
@@ -117,8 +128,28 @@ class Module:
     def move_complete(self, axes: list[str], now: float) -> None:
         """A commanded move completed; `axes` are the letters of the axes it moved to the end."""
 
+    def zeroing(self, now: float) -> None:
+        """ZERO or the zero button is about to make every axis read 0 (PLANAR CORRECTION
+        re-references its plane here, MS-PC-2)."""
+
     def report_mask(self) -> int | None:
         """Axes (bit 0 = first motor axis) that IN0 mode 5 reports, if the module selects them."""
+        return None
+
+    def rm_x(self, value: int, now: float) -> None:
+        """`RM X=value` was accepted: 0 after the ring buffer cleared, or one of `rm_x_values`."""
+
+    def playback_mode(self) -> int | None:
+        """The ring-buffer playback mode (`RM F`, 1–3), if the module keeps one (MS-RB-4)."""
+        return None
+
+    def extra_params(self, key: str) -> dict[str, Param]:
+        """Letters the module adds to the base settings command `key` (NO CHANGE SETTINGS: `VB T`)."""
+        return {}
+
+    def refuse(self, call: Call) -> int | None:
+        """A command about to run: an error code to answer instead of running it (None: run it).
+        NO CHANGE SETTINGS refuses writes to write-protected commands (MS-109)."""
         return None
 
 

@@ -46,8 +46,21 @@ class ModuleHost(Protocol):
         """The servo period: the shortest interval anything is timed to."""
 
     @property
+    def baud(self) -> int:
+        """The main port's baud rate, read from DIP switches 4 and 5 at power-up (MS-2)."""
+
+    @property
     def last_relative(self) -> list[tuple[str, float | None]]:
         """The last `R` command's (axis letter, units) items (IN0 mode 2 repeats them, MS-90)."""
+
+    @property
+    def joystick_fast(self) -> bool:
+        """The joystick button's speed toggle is on fast (MS-85); the side knobs follow it (MS-KNOB-1)."""
+
+    @property
+    def button_held_ms(self) -> float:
+        """How long the front-panel button now being released was held (ms): the press classes end
+        at 3 s, PLANAR CORRECTION's home press needs 6 s beside RING BUFFER (MS-PC-4)."""
 
     # ---- time ---------------------------------------------------------------------------------
 
@@ -84,6 +97,17 @@ class ModuleHost(Protocol):
     def start_moves(self, goals: list[tuple[Axis, float]], t: float, activity: Activity = ...) -> None:
         """A commanded move of several axes to machine counts, completing together (MS-51)."""
 
+    def start_scan_move(self, axis: Axis, goal: float, t: float, speed_mm_s: float | None = None) -> None:
+        """A SCAN leg (MS-SCAN-4): one axis to machine count `goal` in a single leg at `speed_mm_s`
+        (default its `S`), without backlash or overshoot legs or the OUT0 pulse of a commanded
+        move; busy with right status character `B`, and completes like a commanded move."""
+
+    def positions_changed(self) -> None:
+        """An axis origin moved (SI sets a position): positions are due a save (MS-111)."""
+
+    def limits_changed(self) -> None:
+        """Soft limits changed (SI resets them): they are remembered at once (MS-65)."""
+
     # ---- TTL ----------------------------------------------------------------------------------
 
     def in0_function(self, mode: int, t: float) -> None:
@@ -96,6 +120,17 @@ class ModuleHost(Protocol):
 
     def report_axes(self) -> list[Axis]:
         """The axes IN0 mode 5 reports: a module's selection (`report_mask`) or all."""
+
+    # ---- RING BUFFER's RM and the modules that follow it (MS-RB-4, MS-ARRAY-5, MS-ARRAY-6) --------
+
+    def rm_x_values(self) -> set[int]:
+        """`RM X=` values a module serves besides 0 (clear)."""
+
+    def rm_x(self, value: int, t: float) -> None:
+        """Offer an accepted `RM X=value` to every module."""
+
+    def playback_mode(self) -> int | None:
+        """The ring buffer's `RM F` playback mode (None without RING BUFFER)."""
 
 
 class AxisHost(Protocol):
@@ -113,6 +148,10 @@ class AxisHost(Protocol):
 
     def record_sample(self, axis: Axis, t: float) -> None:
         """A DUMP trajectory sample at a leg boundary (MS-108)."""
+
+    def path_changed(self, axis: Axis, t: float) -> None:
+        """The axis's planned path changed at `t` (a leg planned, a motion cut short): a `move`
+        record for the traffic log (movelog.py)."""
 
     def positions_changed(self) -> None:
         """The axis came to rest or its coordinates changed: positions are due a save (MS-111)."""

@@ -6,6 +6,7 @@ from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any
 
 from emulator.device import ControlError
+from emulator.devices.ms2000.calls import Call, CommandError, Param, Pending, Reply
 from emulator.devices.ms2000.modules import MODULES, Handler, Module
 
 if TYPE_CHECKING:
@@ -22,7 +23,8 @@ class ModuleSet:
 
     Order in the controller's life:
     1. construction: modules built in profile order; `handlers()` installed after the base commands
-       (a module may take over a base command), `query_shapes` merged;
+       (a module may take over a base command), `query_shapes` merged; every handler of the table
+       then runs only after each module's `refuse()` let the command through;
     2. power-up and software reset (MS-112): `restore()` after the base settings are restored, then,
        once axes, buttons and low-level mode are back to idle, `reset()`; TTL OUT0 is re-applied
        after it, so a module's `out0_level()` sees its restored state;
@@ -30,9 +32,11 @@ class ModuleSet:
        set), `out0_mode_changed()` (Y set), OUT0 re-applied, then `ttl_trailing_value()` (`TTL
        Y=n v`, MS-24) and OUT0 re-read; `in0_trigger()` on an IN0 edge or a bare `RM`; `button()` on
        a release, before any base function; `move_complete()` after the base effects of a completed
-       move (event, `VB X` lines, OUT0 pulse); `halt()` after every axis stopped; `save()` at `SS Z`;
+       move (event, `VB X` lines, OUT0 pulse); `halt()` after every axis stopped; `zeroing()` before
+       ZERO (command or button) zeroes the axes; `save()` at `SS Z`;
     4. whenever asked: `bu_line()`, `lcd_segment()`, `observe()`, `control_input()`, `report_mask()`,
-       `out0_level()`, `out0_pwm()`, `button_functions()`.
+       `out0_level()`, `out0_pwm()`, `button_functions()`, `extra_params()` (by a base settings
+       command as it runs).
     """
 
     def __init__(self, host: ModuleHost, names: Sequence[str]) -> None:
@@ -55,6 +59,30 @@ class ModuleSet:
     def query_shapes(self) -> dict[str, Shape]:
         return {key: shape for m in self._modules for key, shape in m.query_shapes.items()}
 
+    def guarded(self, table: dict[str, Handler]) -> dict[str, Handler]:
+        """The whole command table, each handler behind the modules' `refuse()` vetoes (MS-109).
+        Only modules that define a veto are asked, and without one the table is left as it is:
+        every command passes here."""
+        refusers = [m for m in self._modules if type(m).refuse is not Module.refuse]
+        if not refusers:
+            return table
+
+        def guard(handler: Handler) -> Handler:
+            def run(call: Call) -> Reply | Pending:
+                for module in refusers:
+                    code = module.refuse(call)
+                    if code is not None:
+                        raise CommandError(code)
+                return handler(call)
+
+            return run
+
+        return {key: guard(handler) for key, handler in table.items()}
+
+    def extra_params(self, key: str) -> dict[str, Param]:
+        """Letters the modules add to the base settings command `key` (`VB T`, MS-109)."""
+        return {letter: p for m in self._modules for letter, p in m.extra_params(key).items()}
+
     # ---- reports and the control channel --------------------------------------------------------
 
     def bu_lines(self) -> list[str]:
@@ -69,7 +97,7 @@ class ModuleSet:
         return [s for m in self._modules if (s := m.lcd_segment(t))]
 
     def observables(self) -> dict[str, Callable[[float], Any]]:
-        return {m.observable: m.observe for m in self._modules if m.observable}
+        return {name: get for m in self._modules for name, get in m.observables().items()}
 
     def inputs(self) -> set[str]:
         return {name for m in self._modules for name in m.inputs}
@@ -113,9 +141,27 @@ class ModuleSet:
         for module in self._modules:
             module.move_complete(landed, t)
 
+    def zeroing(self, t: float) -> None:
+        for module in self._modules:
+            module.zeroing(t)
+
     def report_mask(self) -> int | None:
         """The first module's selection of the axes IN0 mode 5 reports (RING BUFFER's `RM Y`)."""
         return next((mask for m in self._modules if (mask := m.report_mask()) is not None), None)
+
+    # ---- RING BUFFER's RM and the modules that follow it (MS-RB-4, MS-ARRAY-5, MS-ARRAY-6) --------
+
+    def rm_x_values(self) -> set[int]:
+        """`RM X=` values some module serves besides 0 (clear): ARRAY's 1."""
+        return {value for m in self._modules for value in m.rm_x_values}
+
+    def rm_x(self, value: int, t: float) -> None:
+        for module in self._modules:
+            module.rm_x(value, t)
+
+    def playback_mode(self) -> int | None:
+        """The first module's ring-buffer playback mode (RING BUFFER's `RM F`)."""
+        return next((mode for m in self._modules if (mode := m.playback_mode()) is not None), None)
 
     # ---- TTL (§6.7) ---------------------------------------------------------------------------
 

@@ -153,6 +153,9 @@ class RingBuffer(Module):
             host.in0_function(host.card.ttl_in or 1, call.now)
             return host.ack()
 
+        # `RM X=1` starts ARRAY's commanded stepping; without a module serving it `:N-4` (MS-ARRAY-6)
+        starts = one_of(0, *host.rm_x_values())
+
         def pointer(value: float) -> float:
             if value != int(value) or not 0 <= value <= max(len(self.slots) - 1, 0):
                 raise CommandError(ErrorCode.OUT_OF_RANGE)
@@ -169,15 +172,27 @@ class RingBuffer(Module):
             return float(int(value) & 0x7F)
 
         params = {
-            "X": Param(lambda: len(self.slots), lambda v: self.clear(call.now), one_of(0)),
+            "X": Param(lambda: len(self.slots), lambda v: self._rm_x(int(v), call.now), starts),
             "Y": Param(lambda: self.axis_mask, lambda v: setattr(self, "axis_mask", int(v)), mask),
-            "Z": Param(lambda: self.pointer, lambda v: setattr(self, "pointer", int(v)), pointer),
+            "Z": Param(lambda: self.pointer, self._set_pointer, pointer),
             "F": Param(lambda: self.mode | (AUTOPLAY_FLAG if self.playing else 0), self._set_mode, mode),
         }
         return run_settings(call, params, "XYZF", host.render(call.key), host.ack())
 
     def _set_mode(self, value: float) -> None:
         self.mode = int(value)
+
+    def _set_pointer(self, value: float) -> None:
+        # checked against the slots before `X=0` of the same command cleared them: stay inside
+        self.pointer = min(int(value), max(len(self.slots) - 1, 0))
+
+    def _rm_x(self, value: int, now: float) -> None:
+        if value == 0:
+            self.clear(now)
+        self.host.rm_x(value, now)
+
+    def playback_mode(self) -> int | None:
+        return self.mode
 
     # ---- triggers and buttons -----------------------------------------------------------------
 
