@@ -25,6 +25,12 @@ if TYPE_CHECKING:
     from emulator.devices.ms2000.scheduler import Timer
 
 _CONTROL_BYTE = bytes((proto.CONTROL,))
+#: a line's command (None: unknown), its items and the raw text of its arguments
+Parsed = tuple[proto.CommandSpec | None, tuple[proto.Item, ...], str]
+#: what a blank line parses to (told apart from an unknown command by identity)
+BLANK: Parsed = (None, (), "")
+#: parsed lines kept at most (then forgotten at once): the few a host polls, not everything it sent
+PARSED_LINES = 256
 
 #: the 0xFF control sequences (MS-119), for the traffic log
 CONTROL_SEQUENCES = {
@@ -50,6 +56,9 @@ class Interpreter:
         #: bytes read while the host's settings mismatched (MS-4): dropped once they match again
         self._junk = False
         self._queue: deque[bytes | None] = deque()
+        #: lines already parsed: hosts poll the same few lines over and over (`W X Y`, `/`), and a
+        #: line's parse depends only on its bytes and the profile's knobs, which never change
+        self._parsed: dict[bytes, Parsed] = {}
         #: the command waiting to reply, whether it ends lines with CR only, its timer and its line
         self._pending: tuple[Pending, bool, Timer | None, bytes | None] | None = None
 
@@ -198,20 +207,33 @@ class Interpreter:
         ctl = self.ctl
         if line is None:
             return ctl.error(ErrorCode.UNDEFINED)
-        text = line.decode("latin-1")
-        if proto.is_blank(text):
+        parsed = self._parsed.get(line)
+        if parsed is None:
+            parsed = self._parse(line)
+            if len(self._parsed) >= PARSED_LINES:
+                self._parsed.clear()
+            self._parsed[line] = parsed
+        if parsed is BLANK:
             ignore = ctl.knobs.empty_line_reply == "ignore"
             return Reply(()) if ignore else ctl.error(ErrorCode.UNKNOWN_COMMAND)
-        parts = proto.split_command(text)
-        handler = self.handlers.get(parts.spec.key) if parts.spec is not None else None
-        if parts.spec is None or handler is None:
+        spec, items, args = parsed
+        handler = self.handlers.get(spec.key) if spec is not None else None
+        if spec is None or handler is None:
             return ctl.error(ErrorCode.UNKNOWN_COMMAND)
-        items = proto.parse_items(parts.args, ctl.knobs.number_values == "prefix")
-        call = Call(parts.spec, tuple(items), parts.args, t)
         try:
-            return handler(call)
+            return handler(Call(spec, items, args, t))
         except CommandError as exc:
             return ctl.error(exc.code)
+
+    def _parse(self, line: bytes) -> Parsed:
+        text = line.decode("latin-1")
+        if proto.is_blank(text):
+            return BLANK
+        parts = proto.split_command(text)
+        if parts.spec is None:
+            return None, (), parts.args
+        numeric_prefix = self.ctl.knobs.number_values == "prefix"
+        return parts.spec, tuple(proto.parse_items(parts.args, numeric_prefix)), parts.args
 
     def _finish_pending(self, t: float) -> None:
         if self._pending is None:

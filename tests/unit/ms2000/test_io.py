@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import pytest
 
+from emulator.devices.ms2000.interpreter import PARSED_LINES
 from tests.unit.ms2000.conftest import Harness
 
 ACK = b":A\r\n"
@@ -291,3 +292,17 @@ def test_bad_control_input_is_a_clear_error(ms: Harness, name: str, params: dict
 
     with pytest.raises(ControlError):
         ms.input(name, **params)
+
+
+def test_a_line_parsed_once_answers_the_same_every_time(ms: Harness) -> None:
+    """Parsed lines are remembered (hosts poll the same few lines): a repeated line, a blank line
+    and an unknown word answer as the first time, and the memory stays bounded."""
+    for _ in range(3):
+        assert ms.cmd("W X Y") == b":A 0 0\r\n"
+        assert ms.cmd("") == b":N-1\r\n"
+        assert ms.cmd("FOO") == b":N-1\r\n"
+        assert ms.cmd("S X=1") == b":A\r\n"
+        assert ms.cmd("S X?") == b":A X=1.000000\r\n"
+    for n in range(PARSED_LINES + 10):
+        ms.cmd(f"W X{' ' * (n % 7)} Y{' ' * (n // 7)}")
+    assert len(ms.dev.interpreter._parsed) <= PARSED_LINES
