@@ -1,6 +1,8 @@
 """`stage-emu plot TRAFFIC_LOG -o path.svg|png`: the path of a served session, drawn from the device's
 own `move` records in a `--log-traffic` file (emulator/plot.py reads it, emulator/plot_figure.py draws
-it). matplotlib is an optional extra, imported only here; every failure is one line, exit 1.
+it), or for a CRISP or AUTOFOCUS session its focus over time (emulator/plot_focus.py,
+emulator/plot_focus_figure.py). matplotlib is an optional extra, imported only here; every failure is
+one line, exit 1.
 """
 
 from __future__ import annotations
@@ -11,7 +13,8 @@ from typing import NoReturn
 
 import click
 
-from emulator.plot import LogError, read_session
+from emulator.plot import LogError, read_records, session_from
+from emulator.plot_focus import Focus, focus_device, focus_of
 
 NEEDS_MATPLOTLIB = "stage-emu plot needs matplotlib: pip install 'stage-emu[plot]'"
 FORMATS = (".png", ".svg")
@@ -37,13 +40,26 @@ def _fail(message: str) -> NoReturn:
     show_default=True,
     help="The plane of the path (xyz: in 3-D).",
 )
+@click.option(
+    "--focus/--path",
+    "focus",
+    default=None,
+    help="The focus figure (CRISP, AUTOFOCUS) or the stage's path [default: focus when the device has "
+    "CRISP or AUTOFOCUS records].",
+)
 @click.option("--title", help="The figure's title (default: device, axes and time span).")
-def plot(traffic_log: Path, output: Path, device: str | None, view: str, title: str | None) -> None:
+def plot(
+    traffic_log: Path, output: Path, device: str | None, view: str, focus: bool | None, title: str | None
+) -> None:
     """Draw the path a device's stage took in TRAFFIC_LOG (written by `stage-emu serve --log-traffic`).
 
     Positions come from the device's own move records, in µm or mm of its user coordinates. ARRAY
     cells are numbered in arrival order, SCAN sync and line ends are marked, and OUT0 (a TRACER
-    laser) high is drawn solid, low dashed. The third axis is drawn over time below when it moved."""
+    laser) high is drawn solid, low dashed. The third axis is drawn over time below when it moved.
+
+    A CRISP or AUTOFOCUS session is drawn over time instead: the focus axis (with CRISP's surface),
+    the focus error and its in-focus band (or AUTOFOCUS's focus value), CRISP's states and
+    AUTOFOCUS's runs."""
     if output.suffix.lower() not in FORMATS:
         _fail(f"{output}: the output must end in .png or .svg")
     try:
@@ -53,13 +69,22 @@ def plot(traffic_log: Path, output: Path, device: str | None, view: str, title: 
         sys.exit(1)
     matplotlib.use("Agg")
     from emulator.plot_figure import draw
+    from emulator.plot_focus_figure import draw_focus
 
     try:
-        session = read_session(traffic_log, device)
+        records = read_records(traffic_log)
+        wanted = focus if focus is not None else focus_device(records, device) is not None
+        drawn = (
+            focus_of(traffic_log, records, device) if wanted else session_from(traffic_log, records, device)
+        )
     except LogError as exc:
         _fail(str(exc))
+    session = drawn.session if isinstance(drawn, Focus) else drawn
     try:
-        draw(session, view, output, title)
+        if isinstance(drawn, Focus):
+            draw_focus(drawn, output, title)
+        else:
+            draw(drawn, view, output, title)
     except OSError as exc:
         _fail(f"{output}: cannot write it: {exc.strerror or exc}")
     click.echo(f"{output}: {session.device}, {session.end - session.start:.2f} s of device time")

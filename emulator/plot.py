@@ -181,7 +181,11 @@ def _number(value: Any) -> bool:
 
 def read_session(path: Path, device: str | None = None) -> Session:
     """The session of `device` (default: the only device with `move` records) in the log at `path`."""
-    records = read_records(path)
+    return session_from(path, read_records(path), device)
+
+
+def session_from(path: Path, records: list[dict[str, Any]], device: str | None = None) -> Session:
+    """`read_session` of the records read from `path`."""
     devices = sorted({r["device"] for r in records})
     if device is not None and device not in devices:
         raise LogError(f"{path}: no device {device!r} (the log holds: {', '.join(devices)})")
@@ -195,6 +199,11 @@ def read_session(path: Path, device: str | None = None) -> Session:
         device = moving[0]
     elif device not in moving:
         raise LogError(f"{path}: no move records of device {device!r}")
+    return session_of(path, device, records)
+
+
+def session_of(path: Path, device: str, records: list[dict[str, Any]]) -> Session:
+    """`device`'s session from the records of the log at `path`; `Session.tracks` may be empty."""
     own = sorted((r for r in records if r["device"] == device), key=lambda r: r["t"])
     try:
         return _session(device, own)
@@ -222,7 +231,7 @@ def _session(device: str, records: list[dict[str, Any]]) -> Session:
             session.laser.append((t, int(record["level"])))
     # a stable sort: records of one instant keep their order, the last one standing
     session.tracks = {axis: Track(tuple(sorted(own, key=_start))) for axis, own in legs.items()}
-    session.start = min(session.start, *(track.legs[0].start for track in session.tracks.values()))
+    session.start = min([session.start, *(track.legs[0].start for track in session.tracks.values())])
     return session
 
 

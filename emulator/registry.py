@@ -16,15 +16,22 @@ if TYPE_CHECKING:
 C = TypeVar("C", bound="Config")
 
 
+def main_only(config: Any) -> tuple[str, ...]:
+    return ("main",)
+
+
 @dataclass(frozen=True)
 class Family(Generic[C]):
     """`schema` is the profile's top dataclass; `factory` takes profiles of exactly that type, so
-    mypy checks a model against the schema it is registered with."""
+    mypy checks a model against the schema it is registered with. `channels` gives the channels
+    (ports) a model built from a profile's config will have (`Device.channels`), known before it
+    is built: rigs give each of them a port."""
 
     name: str
     summary: str
     schema: type[C]
     factory: Callable[[str, Profile[C], float, HostServices], Device]
+    channels: Callable[[C], tuple[str, ...]] = main_only
 
 
 _families: dict[str, Family[Any]] = {}
@@ -55,3 +62,9 @@ def families() -> dict[str, Family[Any]]:
 def family(name: str) -> Family[Any] | None:
     _load_builtins()
     return _families.get(name)
+
+
+def channels_of(profile: Profile[Any]) -> tuple[str, ...]:
+    """The channels of a device built from `profile` (`main` first)."""
+    found = family(profile.family)
+    return main_only(profile.config) if found is None else found.channels(profile.config)

@@ -39,6 +39,9 @@ Device events (the control channel's pushed events) are records with `dir` `ev` 
   cell move, MULTIAXIS stretch, G-code segment, correction; a motion cut short); the MP-285 one for
   all three axes per move (`m`, program vectors), halt, stop, or ROE turn (a halt's record is written
   when the halted run ends, after its settle time, stamped with the halt's instant: a reader sorts).
+- `crisp_sample` (each CRISP lock-loop update: `error`, `surface_um`) and `af_sample` (each video
+  frame of an AUTOFOCUS scan: `z_um`, `value`) are, like `move`, built only while a log is kept and
+  go only to it (`LOG_ONLY`).
 
 The log is a side channel: a disk that fills up or a file that cannot be written must never stop a
 device from answering. The first failure is logged once and traffic logging stops; SIGUSR1
@@ -66,6 +69,11 @@ TX = "tx"
 EV = "ev"
 #: the event of a `move` record
 MOVE = "move"
+#: CRISP's lock-loop samples and AUTOFOCUS's focus-value samples (docs/ms2000.md §12)
+CRISP_SAMPLE, AF_SAMPLE = "crisp_sample", "af_sample"
+#: events a model builds only while explaining (a traffic log is kept): they go to the log alone, so
+#: control-channel subscribers see the same events with or without a log, and few of them
+LOG_ONLY = frozenset({MOVE, CRISP_SAMPLE, AF_SAMPLE})
 
 
 class TrafficLog:

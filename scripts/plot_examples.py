@@ -1,12 +1,14 @@
 """The README's `stage-emu plot` pictures, recorded from a served emulator in a few seconds.
 
-    python scripts/plot_examples.py [--out docs/images]
+    python scripts/plot_examples.py [--out docs/images] [--only DEVICE ...]
 
-One daemon serves three MS-2000s at `--time-scale 10` with `--log-traffic`; through pyserial (and the
-`stage-emu gcode` command) it records (a) a 3×2 ARRAY self-scan on `ms2000-all-modules`, (b) a
-serpentine SCAN on `ms2000-scan`, (c) a 1 mm circle traced with the output on by `stage-emu gcode`
-on `ms2000-tracer`, then stops the daemon and draws each device with `stage-emu plot` into
-array-3x2.png, scan-serpentine.png and gcode-circle.png. The integration tests run the same steps.
+One daemon serves four MS-2000s at `--time-scale 10` with `--log-traffic`; through pyserial, the
+control channel and the `stage-emu gcode` command it records (a) a 3×2 ARRAY self-scan on
+`ms2000-all-modules`, (b) a serpentine SCAN on `ms2000-scan`, (c) a 1 mm circle traced with the
+output on by `stage-emu gcode` on `ms2000-tracer`, (d) a CRISP focus lock following a drifting
+sample on `ms2000-crisp`, then stops the daemon and draws each device with `stage-emu plot` into
+array-3x2.png, scan-serpentine.png, gcode-circle.png and crisp-lock.png (a focus figure: the device
+has CRISP records). The integration tests run the same steps.
 """
 
 from __future__ import annotations
@@ -14,11 +16,13 @@ from __future__ import annotations
 import argparse
 import sys
 import tempfile
-from collections.abc import Iterator, Sequence
+import time
+from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
 
 from emulator.cli import main as stage_emu
+from emulator.control import ControlClient
 from emulator.launcher import RunningDaemon, start_daemon
 from protocols.clients import MS2000
 
@@ -26,6 +30,7 @@ ROOT = Path(__file__).resolve().parents[1]
 ARRAY_DEVICE = "ms2000-all-modules"
 SCAN_DEVICE = "ms2000-scan"
 TRACER_DEVICE = "ms2000-tracer"
+CRISP_DEVICE = "ms2000-crisp"
 #: device seconds per wall second: the three sessions take about 10 s of device time
 TIME_SCALE = 10.0
 #: wall seconds without an awaited event before a session is declared stuck
@@ -47,6 +52,7 @@ FIGURES = {
     ARRAY_DEVICE: ("array-3x2.png", "ARRAY 3×2 self-scan (AR X=3 Y=2 Z=0.5 F=0.4), ms2000-all-modules"),
     SCAN_DEVICE: ("scan-serpentine.png", f"Serpentine SCAN, {SCAN_LINES} lines (SN F=1), ms2000-scan"),
     TRACER_DEVICE: ("gcode-circle.png", "stage-emu gcode: a 1 mm circle, ms2000-tracer"),
+    CRISP_DEVICE: ("crisp-lock.png", "CRISP holds focus on a drifting sample (LK F=83), ms2000-crisp"),
 }
 
 
@@ -92,6 +98,43 @@ def gcode_circle(daemon: RunningDaemon, workdir: Path, device: str = TRACER_DEVI
     run_cli(["gcode", str(program), "--port", daemon.port(device)])
 
 
+def crisp_lock(daemon: RunningDaemon, device: str = CRISP_DEVICE) -> None:
+    """CRISP locks (bare `LK`: ready, `LK F=83`: lock) and keeps Z on the sample as it drifts up at
+    2 µm/s, jumps 3 µm and drifts down at 1 µm/s (control input `crisp`); a commanded 5 µm Z move
+    (`R Z=50`) holds the lock off meanwhile (`N`), after which it pulls Z back; bare `UL` unlocks."""
+    control = daemon.control()
+    with MS2000(daemon.port(device)) as stage:
+        stage.command("LK")
+        stage.command("LK F=83")
+        deadline = time.monotonic() + PATIENCE_S
+        while stage.exchange("LK X?") != ":A F":
+            if time.monotonic() > deadline:
+                raise Stuck(f"{device}: no focus lock within {PATIENCE_S} s")
+        device_wait(control, 0.5)
+        control.input(device, "crisp", drift_um_per_s=2.0)
+        device_wait(control, 2.0)
+        surface_um = control.get(device, "crisp")["surface_um"]
+        control.input(device, "crisp", surface_um=surface_um + 3.0, drift_um_per_s=0.0)
+        device_wait(control, 1.0)
+        stage.command("R Z=50")
+        device_wait(control, 1.5)
+        control.input(device, "crisp", drift_um_per_s=-1.0)
+        device_wait(control, 2.0)
+        control.input(device, "crisp", drift_um_per_s=0.0)
+        device_wait(control, 0.5)
+        stage.command("UL")
+
+
+def device_wait(control: ControlClient, seconds: float) -> None:
+    """Let `seconds` of device time pass (the daemon's clock runs TIME_SCALE times wall time)."""
+    until = float(control.clock()["now"]) + seconds
+    deadline = time.monotonic() + PATIENCE_S
+    while float(control.clock()["now"]) < until:
+        if time.monotonic() > deadline:
+            raise Stuck(f"device time stood still for {PATIENCE_S} s")
+        time.sleep(0.01)
+
+
 def _count(events: Iterator[dict[str, Any]], device: str, name: str, count: int) -> None:
     """Wait for `count` events called `name` among a subscription's `events`."""
     seen = 0
@@ -111,14 +154,20 @@ def run_cli(args: list[str]) -> None:
             raise RuntimeError(f"stage-emu {args[0]} failed (exit {exc.code})") from None
 
 
-def record(workdir: Path) -> Path:
-    """All three sessions in one traffic log, which it returns once the daemon has stopped."""
+def record(workdir: Path, devices: Sequence[str]) -> Path:
+    """The sessions of `devices` (FIGURES keys) in one traffic log, which it returns once the daemon
+    has stopped."""
+    sessions: dict[str, Callable[[RunningDaemon], None]] = {
+        ARRAY_DEVICE: array_self_scan,
+        SCAN_DEVICE: serpentine_scan,
+        TRACER_DEVICE: lambda daemon: gcode_circle(daemon, workdir),
+        CRISP_DEVICE: crisp_lock,
+    }
     log = workdir / "traffic.jsonl"
-    daemon = serve(workdir, log, list(FIGURES))
+    daemon = serve(workdir, log, devices)
     try:
-        array_self_scan(daemon)
-        serpentine_scan(daemon)
-        gcode_circle(daemon, workdir)
+        for device in devices:
+            sessions[device](daemon)
     finally:
         daemon.stop()
     return log
@@ -127,11 +176,16 @@ def record(workdir: Path) -> Path:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "images", help="where the PNGs go")
+    parser.add_argument(
+        "--only", action="append", choices=list(FIGURES), help="record and draw only this device (repeatable)"
+    )
     options = parser.parse_args(argv)
     options.out.mkdir(parents=True, exist_ok=True)
+    devices = options.only or list(FIGURES)
     with tempfile.TemporaryDirectory(prefix="plot-examples-") as tmp:
-        log = record(Path(tmp))
-        for device, (name, title) in FIGURES.items():
+        log = record(Path(tmp), devices)
+        for device in devices:
+            name, title = FIGURES[device]
             output = options.out / name
             run_cli(["plot", str(log), "-o", str(output), "--device", device, "--title", title])
             print(f"{output}: {output.stat().st_size // 1024} KB")

@@ -6,6 +6,12 @@
         stage.wait_until_idle()
         print(stage.where("X", "Y"))           # {'X': 10000.0, 'Y': -5000.0}
 
+A TTL REPORT build (MS-TTLREP-1) also sends a frame of every axis's encoder position on each IN0
+edge, on a second port; `TtlReportPort` reads them:
+
+    with TtlReportPort("/dev/ttyUSB1", baudrate=115200) as frames:   # the main port's baud (MS-5)
+        print(frames.read().by_axis())         # {'X': 4540, 'Y': -2292, 'Z': 0} (encoder counts)
+
 Replies come in several shapes (`:A`, `:A X=1.5`, `:X=1.5 A`, `X=1 :A`, `:A 1 2`, bare text, `N`/`B`);
 `parse_reply` reads them all. `:N-<code>` replies raise `MS2000Error` subclasses carrying the code.
 Command lines, reply shapes and error codes are those of the codec, `protocols.ms2000`.
@@ -22,6 +28,8 @@ import serial
 from protocols import ms2000 as proto
 from protocols.clients.errors import NoReply
 from protocols.ms2000 import ErrorCode, format_command
+from protocols.ms2000 import ttl_report as frames
+from protocols.ms2000.ttl_report import TtlReport
 
 #: how numbers are written in command lines: integers bare, others to 6 decimals
 format_value = proto.host_number
@@ -110,8 +118,8 @@ def parse_reply(text: str, command: str = "") -> Reply:
 
 
 class MS2000:
-    def __init__(self, port: str | serial.Serial, baudrate: int = 9600, timeout: float = 1.0) -> None:
-        if isinstance(port, serial.Serial):
+    def __init__(self, port: str | serial.SerialBase, baudrate: int = 9600, timeout: float = 1.0) -> None:
+        if isinstance(port, serial.SerialBase):  # a URL's port (serial_for_url) is no serial.Serial
             self.port = port
         else:
             self.port = serial.Serial(port, baudrate, timeout=timeout)
@@ -244,3 +252,43 @@ class MS2000:
     def info(self, axis: str) -> dict[str, str]:
         """`INFO <axis>` as {label: value-with-units}."""
         return proto.parse_info(self.exchange(format_command("I", [axis])))
+
+
+class TtlReportPort:
+    """The auxiliary port of a TTL REPORT build, read-only (MS-TTLREP-1). Frames are binary unless
+    the controller was ordered with ASCII reports (`read_line`). A binary frame is `axes` × 5 bytes
+    plus CR, recognised by its length: open the port before the first edge so reading starts at a
+    frame's first byte."""
+
+    def __init__(
+        self, port: str | serial.SerialBase, baudrate: int = 115200, axes: int = 3, timeout: float = 1.0
+    ) -> None:
+        self.port = (
+            port if isinstance(port, serial.SerialBase) else serial.Serial(port, baudrate, timeout=timeout)
+        )
+        self.frame_length = frames.frame_length(axes)
+
+    def close(self) -> None:
+        self.port.close()
+
+    def __enter__(self) -> TtlReportPort:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def read(self) -> TtlReport:
+        """The next binary frame. Raises NoReply when none is complete within the port's timeout,
+        TtlReportError when the bytes are not a frame (another axis count, or ASCII reports)."""
+        data = self.port.read(self.frame_length)
+        if len(data) < self.frame_length:
+            raise NoReply(f"TTL REPORT: no complete frame within {self.port.timeout} s (got {data!r})")
+        return frames.decode(data)
+
+    def read_line(self) -> tuple[float, ...]:
+        """The next ASCII report: positions in units (1/UM mm), as `W` prints them (a line's LF, if
+        any, is read with the next one)."""
+        raw = self.port.read_until(proto.CR)
+        if not raw.endswith(proto.CR):
+            raise NoReply(f"TTL REPORT: no complete line within {self.port.timeout} s (got {raw!r})")
+        return frames.parse_line(raw.decode("latin-1"))

@@ -1,15 +1,10 @@
-"""Sutter MP-285 / MP-285A controller: the sans-I/O device model (docs/mp285.md).
+"""Sutter MP-285 / MP-285A controller: the sans-I/O device model (docs/mp285.md; rule IDs MP-n).
 
-Rule IDs (MP-n) refer to the behaviour reference in docs/mp285.md. The wire format lives in
-protocols.mp285; the controller's parts live beside this module, one concern each:
-
-- line.py: the serial port (MP-1 ... MP-7): garbled lines, pacing, the one-character register;
-- receiver.py: frames, and bytes while a move is outstanding (§7: interrupts, answers to `c`/`s`,
-  held input replayed after the final reply);
-- commands.py: the command dispatch table and what each parsed item does (§2 ... §10);
-- motion.py: the stage's geometry, move planning, runs and programs (§4, §6, §10);
-- status.py: the status block and the display (§9, §11);
-- faults.py: crash signature and recovery, the ROE (§12).
+The wire format lives in protocols.mp285; the controller's parts live beside this module, one
+concern each: line.py the serial port (MP-1 ... MP-7); receiver.py frames, and bytes while a move
+is outstanding (§7); commands.py the dispatch table (§2 ... §10); motion.py geometry, runs and
+programs (§4, §6, §10); status.py the status block and display (§9, §11); faults.py crash
+signature, recovery and the ROE (§12); movelog.py the traffic log's `move` records.
 
 This module wires them into `Mp285Device`, the state machine of the reference's states (`State`),
 which alone enters and leaves states: moves and programs, reset (§8), power cycle, crash, lock-up.
@@ -19,8 +14,8 @@ end of a busy period, power-on, lock-up, garbled characters becoming complete) a
 `_next_event` and run in time order by `advance`.
 
 While explaining (a traffic log is kept) the receiver notes each unit of input it parses, this module
-what is lost or stray outside it, and `send` summarises each output as a reply to `_cause`: the item
-being executed, or for a final reply the command that started the run.
+what is lost or stray outside it, `send` summarises each output as a reply to `_cause` (the item
+being executed, or the command that started a run), and runs and rests become `move` records.
 """
 
 from __future__ import annotations
@@ -143,14 +138,13 @@ class Mp285Device(Device):
         return self._line.mismatch_effect(host)
 
     def snapshot(self, now: float) -> dict[str, Any]:
-        t = now
         velocity = self.velocity
         return {
             "model": self.controller.model,
             "interface": self.controller.interface,
-            "state": self.state(t).value,
+            "state": self.state(now).value,
             "parser": self._receiver.parser.state.value,
-            **self.stage.snapshot(self._run, t),
+            **self.stage.snapshot(self._run, now),
             "mode": "relative" if self.relative else "absolute",
             "velocity": {
                 "word": velocity.word,
@@ -340,14 +334,19 @@ class Mp285Device(Device):
         if self.notes.on:
             self._events.append(run_record(self._run.motion, self.stage))
 
+    def _log_rest(self, t: float) -> None:
+        """The stage rests at its physical position from `t` (a traffic-log `move` record)."""
+        if self.notes.on:
+            self._events.append(rest_record(t, self.stage.physical, self.stage))
+
     def _on_final(self, t: float) -> None:
         run = self._run
         assert run is not None
         self._cause = self._run_cause
         self.stage.physical = run.position(t)
         halted = None if run.cause is None else run.cause.value
-        if halted is not None and self.notes.on:  # written now, stamped with the halt's instant
-            self._events.append(rest_record(run.motion_end, self.stage.physical, self.stage))
+        if halted is not None:  # written now, stamped with the halt's instant
+            self._log_rest(run.motion_end)
         self._events.append({"ev": "move_ended", "position_usteps": self.reported(t), "halted": halted})
         if run.program is not None and run.cause is None:
             self.continue_program(t, run.program)
@@ -433,8 +432,7 @@ class Mp285Device(Device):
         if self._run is not None:
             self.stage.physical = self._run.position(t)
             self._run = None
-            if self.notes.on:
-                self._events.append(rest_record(t, self.stage.physical, self.stage))
+            self._log_rest(t)
         self._drop_input(t, why)
 
     def _power_cycle(self, t: float) -> None:
@@ -495,8 +493,7 @@ class Mp285Device(Device):
                 f"{self.name}: the ROE acts only while the controller is idle (now {state.value})"
             )
         self.stage.turn(axis, clicks * self.status.template.roe_vari)
-        if self.notes.on:
-            self._events.append(rest_record(t, self.stage.physical, self.stage))
+        self._log_rest(t)
         if clicks:
             self.status.roe_negative = clicks < 0
         self._roe.last = t

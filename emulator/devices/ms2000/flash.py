@@ -3,7 +3,7 @@
     {"format": 1,
      "identity": {"build": ..., "version": ..., "axes": [...]},
      "saved": {"axes": {letter: {...}}, "card": {...}, "modules": {name: {...}}},   # SS Z
-     "auto": {"axes": {letter: {...}}, "card": {...}},                            # saved on change
+     "auto": {"axes": {letter: {...}}, "card": {...}, "modules": {name: {...}}},  # saved on change
      "physical": {letter: machine counts},   # where the stage is (it does not move while off)
      "positions": {letter: user mm} | null,  # saved at power-off unless SP X=1
      "pending_factory": false}               # SS X

@@ -39,6 +39,7 @@ from emulator.devices.ms2000.calls import Rendered, Reply
 from emulator.devices.ms2000.commands import BaseCommands
 from emulator.devices.ms2000.interpreter import Interpreter
 from emulator.devices.ms2000.lowlevel import LowLevel
+from emulator.devices.ms2000.modules import Handler, channels_of
 from emulator.devices.ms2000.modules.moduleset import ModuleSet
 from emulator.devices.ms2000.movelog import path_record
 from emulator.devices.ms2000.power import Power
@@ -101,14 +102,22 @@ class Ms2000Device(Device):
         self.card = self.power.factory_card()
         self.card_auto = CardAuto()
         self.modules = ModuleSet(self, self.cfg.modules)
+        self._catch_up = self.modules.catch_up_hooks()
+        # ModuleHost members that one module offers the others through the module set
+        self.report_fields = self.modules.report_fields
+        self.rm_x_values = self.modules.rm_x_values
+        self.rm_x = self.modules.rm_x
+        self.playback_mode = self.modules.playback_mode
+        self.array_arrival = self.modules.array_arrival
         self.ttl = Ttl(self)
         self.buttons = Buttons(self)
         self.low = LowLevel(self)
-        handlers = BaseCommands(self).table()
-        handlers.update(self.modules.handlers())
+        self.base_table = BaseCommands(self).table()
+        handlers = {**self.base_table, **self.modules.handlers()}
         self.shapes = dict(proto.QUERY_SHAPES)
         self.shapes.update(self.modules.query_shapes())
         self.interpreter = Interpreter(self, self.modules.guarded(handlers))
+        self.finish_pending = self.interpreter.release  # ModuleHost: a module's late reply (MS-33)
         self.surface = ControlSurface(self)
         self.error_log: deque[int] = deque(maxlen=ERROR_LOG_SIZE)
         self.trajectory_log: deque[str] = deque(maxlen=TRAJECTORY_SIZE)
@@ -125,12 +134,15 @@ class Ms2000Device(Device):
         self.last_relative: list[tuple[str, float | None]] = []
         self.booted_at = now
         self.line = SerialLine(self)
+        self.channels = channels_of(self.cfg)  # `aux` with TTL REPORT (MS-TTLREP-1)
         self.power.power_up(now, cold=True)
 
     # ---- Device contract: time ----------------------------------------------------------------
 
     def _advance(self, now: float) -> None:
         self.scheduler.run_due(now)
+        for catch_up in self._catch_up:
+            catch_up(now)
         if self.power.positions_dirty:
             self.power.persist_idle_positions(now)
 
@@ -149,7 +161,8 @@ class Ms2000Device(Device):
         return self.line.own()
 
     def line_changed(self, host: HostLine | None, now: float, channel: str = MAIN) -> None:
-        self.line.host_changed(host)
+        if channel == MAIN:  # the auxiliary port only transmits, at the main port's settings (MS-5)
+            self.line.host_changed(host)
 
     def declare_host(self, settings: dict[str, Any]) -> None:
         self.line.declare(settings)
@@ -161,9 +174,15 @@ class Ms2000Device(Device):
         return self.line.garbles()
 
     def mismatch_effect(self, host: HostLine, channel: str = MAIN) -> str:
+        if channel != MAIN:
+            return "the auxiliary port sends at the main port's settings regardless (MS-5)"
         return self.line.mismatch_effect(host)
 
     def _receive(self, data: bytes, now: float, channel: str) -> None:
+        if channel != MAIN:
+            if self.notes.on:
+                self.notes.rx(now, LOST, data, "the auxiliary port only transmits (MS-TTLREP-1)", channel)
+            return
         if self.interpreter.silenced:
             if self.notes.on:
                 self.notes.rx(now, LOST, data, "silent after SP (MS-113)")
@@ -203,7 +222,7 @@ class Ms2000Device(Device):
         self.power.positions_dirty = True
 
     def limits_changed(self) -> None:
-        """Soft limits changed outside SL/SU (SEARCH INDEX): remembered at once (MS-65)."""
+        """Limits changed outside SL/SU (SEARCH INDEX, DLED maxima): remembered at once (MS-65)."""
         self.power.save_auto()
 
     # ---- output -------------------------------------------------------------------------------
@@ -214,6 +233,9 @@ class Ms2000Device(Device):
     def ack(self) -> Reply:
         return Reply.text(proto.ack(self.knobs.ack_trailing_space))
 
+    def base_handler(self, key: str) -> Handler:
+        return self.base_table[key]
+
     def render(self, key: str, shape: Shape | None = None) -> Rendered:
         """How to print a reply of command `key`: its query shape after `reply_shape_overrides`
         (MS-35…MS-38) unless the reply form has a fixed `shape`."""
@@ -222,20 +244,20 @@ class Ms2000Device(Device):
             shape = Shape(overrides[key]) if key in overrides else self.shapes.get(key, Shape.A_AXIS)
         return Rendered(shape, self.knobs.reply_trailing_space, self.card.vb_decimals)
 
-    def send_raw(self, data: bytes, t: float, to: str | None = None) -> None:
-        """Send bytes at `t`: the reply to the command `to` (its description while explaining, any
-        string otherwise), or unsolicited output when `to` is None."""
+    def send_raw(self, data: bytes, t: float, to: str | None = None, channel: str = MAIN) -> None:
+        """Send bytes at `t` on `channel` (a line mismatch garbles only the main port's): the reply
+        to the command `to` (its description while explaining, any string otherwise), or unsolicited."""
         kind = REPLY if to is not None else UNSOLICITED
         summary = None
         if self.notes.on:
             summary = f"{proto.shown(data)} ({'unsolicited' if to is None else 'reply to ' + to})"
-        if self.garbles():
+        if channel == MAIN and self.garbles():
             data = garble(data)
             kind = GARBLED
             if summary is not None:
                 sides = self.line.describe_mismatch()
                 summary = f"garbled: {sides} the host reads {proto.shown(data)} of {summary} (MS-4)"
-        self._outbox.append(Emission(t, data, kind=kind, summary=summary))
+        self._outbox.append(Emission(t, data, channel, kind, summary))
 
     def _garble_in(self, data: bytes, t: float) -> bytes:
         """MS-4: what the controller reads of bytes a mismatched host sent."""
@@ -277,8 +299,9 @@ class Ms2000Device(Device):
         return next((a for a in self.axes if a.letter == letter), None)
 
     def focus_axis(self) -> Axis | None:
-        """The axis ZS and the TTL Z-stack step (MS-94); CRISP's `UL F` would move it."""
-        return self.axis_named("Z")
+        """The axis ZS, the TTL Z-stack step (MS-94) and CRISP move: CRISP's `UL F` index, else Z."""
+        index = self.modules.focus_index()
+        return self.axes[index] if index is not None and index < len(self.axes) else self.axis_named("Z")
 
     def relative_goal(self, axis: Axis, delta_mm: float, t: float) -> float:
         """R: the current target plus the distance quantised to whole counts (MS-45, MS-51). Manual
@@ -415,6 +438,8 @@ class Ms2000Device(Device):
                 axis.manual(t, self.joystick_velocity(axis))
 
     def turn_wheel(self, counts: float, t: float) -> None:
+        if self.modules.wheel(counts, t):
+            return  # CRISP's lock offset took the turn (MS-CRISP-6)
         ratio = 1.0 if self.buttons.fast else self.card.js_slow / self.card.js_fast
         um = counts * self.cfg.wheel_um_per_count * self.card.js_wheel / 100 * ratio
         for axis in self.axes:
@@ -444,10 +469,10 @@ class Ms2000Device(Device):
         return self.modules.in0_available(mode)
 
     def in0_edge(self, t: float) -> None:
-        """A rising edge on IN0 (MS-90); BE bit 4 disables the TTL inputs (MS-86)."""
-        if not self.card.button_enable & TTL_ENABLE_BIT:
-            return
-        self.in0_function(self.card.ttl_in, t)
+        """A rising edge on IN0 (MS-90, MS-SEQ-2); BE bit 4 disables the TTL inputs (MS-86)."""
+        if self.card.button_enable & TTL_ENABLE_BIT:
+            self.in0_function(self.card.ttl_in, t)
+            self.modules.in0_edge(t)
 
     def in0_function(self, mode: int, t: float) -> None:
         self.modules.in0_trigger(mode, t)
@@ -465,12 +490,3 @@ class Ms2000Device(Device):
         """Axes reported by IN0 mode 5: a module's selection (RING BUFFER's `RM Y`, MS-RB-4) or all."""
         mask = self.modules.report_mask()
         return list(self.axes) if mask is None else [a for a in self.axes if mask & (1 << a.index)]
-
-    def rm_x_values(self) -> set[int]:
-        return self.modules.rm_x_values()
-
-    def rm_x(self, value: int, t: float) -> None:
-        self.modules.rm_x(value, t)
-
-    def playback_mode(self) -> int | None:
-        return self.modules.playback_mode()

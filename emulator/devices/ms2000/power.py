@@ -56,6 +56,8 @@ class Power:
         #: the pending check that saves positions at rest, and when they last changed
         self._position_timer: Timer | None = None
         self._flagged_at = 0.0
+        #: an `SS` waits for the store to settle: only then does a settled store release a reply
+        self._ack_waits = False
 
     # ---- factory values -----------------------------------------------------------------------
 
@@ -139,6 +141,7 @@ class Power:
         ctl.card = from_plain(self.factory_card(), saved.get("card"), "saved.card", reject)
         ctl.card_auto = from_plain(CardAuto(), auto.get("card"), "auto.card", reject)
         ctl.modules.restore(self._section(saved, "modules", "saved") or {}, reject)
+        ctl.modules.restore_auto(self._section(auto, "modules", "auto") or {}, reject)
 
     def _section(self, mapping: dict[str, Any], key: str, within: str = "") -> dict[str, Any] | None:
         """The stored mapping `mapping[key]`; None when absent or (reported) not a mapping."""
@@ -300,13 +303,22 @@ class Power:
         background makes it wait; HALT cannot cut a save short, lines behind it wait (MS-13)."""
         if self.flash.settled:
             return self.ctl.ack()
-        return Pending(None, lambda done: self.ctl.ack(), haltable=False)
+        self._ack_waits = True
+        return Pending(None, self._settled_ack, cancel=self._stop_waiting, haltable=False)
+
+    def _settled_ack(self, t: float) -> Reply:
+        self._stop_waiting(t)
+        return self.ctl.ack()
+
+    def _stop_waiting(self, t: float) -> None:
+        self._ack_waits = False
 
     def save_auto(self) -> None:
-        """Settings remembered as soon as they change (SL, SU, HM, AA, CCA X, BCA)."""
+        """Settings remembered as soon as they change (SL, SU, HM, AA, CCA X, BCA, DLED maxima)."""
         ctl = self.ctl
         axes = {a.hw_letter: to_plain(a.auto) for a in ctl.axes}
-        self.flash.write(auto={"axes": axes, "card": to_plain(ctl.card_auto)})
+        modules = ctl.modules.save_auto()
+        self.flash.write(auto={"axes": axes, "card": to_plain(ctl.card_auto), "modules": modules})
 
     def forget(self) -> None:
         """Erase the device's flash (a factory-fresh controller), e.g. for a host's `reset` op."""
@@ -336,5 +348,5 @@ class Power:
                     "error": failure.reason,
                 }
             )
-        if self.flash.settled:
+        if self.flash.settled and self._ack_waits:  # not another command's pending reply
             ctl.interpreter.release(ctl.now)

@@ -10,6 +10,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from emulator.devices.ms2000.buttons import TTL_ENABLE_BIT
+
 if TYPE_CHECKING:
     from emulator.devices.ms2000.model import Ms2000Device
     from emulator.devices.ms2000.scheduler import Timer
@@ -79,9 +81,12 @@ class Ttl:
 
     def set_in0(self, level: int, t: float) -> None:
         rising = level and not self.in0
+        falling = self.in0 and not level
         self.in0 = level
         if rising:
             self.ctl.in0_edge(t)
+        elif falling and self.ctl.card.button_enable & TTL_ENABLE_BIT:
+            self.ctl.modules.in0_release(self.ctl.card.ttl_in, t)  # level modes (MS-CRISP-7)
 
     def pulse_in0(self, ms: float, t: float) -> None:
         if self._in0_fall is not None:

@@ -1,8 +1,7 @@
 """ARRAY MODULE (§9.1): TV-129…TV-138.
 
-The vectors name profile `ms2000-seq`, which also needs SEQUENCER (not emulated yet): they run on
-`ms2000` with the modules of ms2000-seq minus SEQUENCER and its linear X/Y encoders (`SEQ_LIKE`,
-tests/support/ms2000_builds.py). TV-137 runs on `ms2000-all-modules`.
+The vectors run on profile `ms2000-seq` (SEQUENCER without a program leaves `@` and the array to
+ARRAY); TV-137 runs on `ms2000-all-modules`, whose LCD shows ARRAY's own segment.
 """
 
 from __future__ import annotations
@@ -12,7 +11,6 @@ from collections.abc import Callable
 import pytest
 
 from tests.conformance.ms2000.conftest import ACK, IDLE, Host
-from tests.support.ms2000_builds import SEQ_LIKE
 
 TWO_BY_TWO = [(b"AR X=2 Y=2 Z=1 F=1\r", ACK), (b"RT Z=50\r", ACK)]
 #: one device-time step while watching the state machine on a paused clock
@@ -21,7 +19,7 @@ STEP_S = 0.005
 
 @pytest.fixture
 def seq(connect: Callable[..., Host]) -> Host:
-    return connect(overrides=SEQ_LIKE)
+    return connect("ms2000-seq")
 
 
 def arrivals(host: Host, count: int, timeout: float = 2.0) -> list[tuple[int, int]]:
@@ -138,7 +136,7 @@ def test_tv_136_rm_x0_starts_only_with_the_knob(
 ) -> None:
     """TV-136 (MS-ARRAY-6): in IN0 mode 7, `RM X=0` also moves to (1,1) with knob
     `array_start_on_rm_x0: true`; with it false it only clears the ring buffer."""
-    host = connect(overrides={**SEQ_LIKE, "knobs": {"array_start_on_rm_x0": knob}})
+    host = connect("ms2000-seq", {"knobs": {"array_start_on_rm_x0": knob}})
     host.run([*TWO_BY_TWO, (b"M X=5000\r", ACK), IDLE, (b"TTL X=7\r", ACK)])
     host.target.ctl().subscribe("dut")
     host.ask(b"RM X=0\r", ACK)

@@ -1,8 +1,6 @@
 """PLANAR CORRECTION module (§9.9): TV-187…TV-192.
 
-`ms2000-seq` belongs to a later issue (it needs SEQUENCER): these vectors run on the default profile
-with the `SEQ_LIKE` overrides (tests/support/ms2000_builds.py): ms2000-seq's modules without
-SEQUENCER, X and Y on linear encoders at 100000 counts/mm.
+The vectors run on profile `ms2000-seq` (X and Y on linear encoders at 100000 counts/mm).
 """
 
 from __future__ import annotations
@@ -12,7 +10,6 @@ from collections.abc import Callable
 import pytest
 
 from tests.conformance.ms2000.conftest import ACK, IDLE, Host, Step
-from tests.support.ms2000_builds import SEQ_LIKE
 
 #: TV-187: points (0, 0, 0), (10 mm, 0, 0), (0, 10 mm, 10 µm); the plane rises 1 µm per mm of Y
 FIRST_PLANE: list[Step] = [
@@ -34,7 +31,7 @@ FIRST_PLANE: list[Step] = [
 
 @pytest.fixture
 def seq(connect: Callable[..., Host]) -> Host:
-    return connect(overrides=SEQ_LIKE)
+    return connect("ms2000-seq")
 
 
 def test_tv_187_three_points_and_correction(seq: Host) -> None:

@@ -1,8 +1,8 @@
 """ARRAY MODULE (§9.1) on the manual clock: TV-129…TV-138 and the rules around them.
 
-The vectors name profile `ms2000-seq`, which also needs SEQUENCER (not emulated yet); they run on
-`ms2000` with the modules of ms2000-seq minus SEQUENCER and its linear X/Y encoders (`SEQ_LIKE`,
-tests/support/ms2000_builds.py). TV-137 runs on `ms2000-all-modules`."""
+The vectors run on profile `ms2000-seq`, where SEQUENCER sits beside ARRAY (without a program it
+leaves `@` to ARRAY, MS-85); TV-137 runs on `ms2000-all-modules`, whose LCD shows ARRAY's own
+segment."""
 
 from __future__ import annotations
 
@@ -12,14 +12,13 @@ from typing import Any
 import pytest
 
 from emulator.devices.ms2000.modules.array import CellOrder
-from tests.support.ms2000_builds import SEQ_LIKE
 from tests.unit.ms2000.conftest import Harness
 
 ACK = b":A\r\n"
 
 
 def seq(**knobs: Any) -> Harness:
-    return Harness("ms2000", {**SEQ_LIKE, "knobs": knobs} if knobs else SEQ_LIKE)
+    return Harness("ms2000-seq", {"knobs": knobs} if knobs else None)
 
 
 @pytest.fixture

@@ -1,8 +1,6 @@
 """DAC OUT (§9.7) on the manual clock: TV-181…TV-183 and the rest of MS-DAC-1…MS-DAC-3.
 
-`ms2000-seq` and `ms2000-pz-crisp` belong to later issues: the builds are the default profile with
-overrides (tests/support/ms2000_builds.py), `SEQ_LIKE` (ms2000-seq without SEQUENCER) and
-`PIEZO_LIKE` (ms2000-pz-crisp's piezo Z without CRISP).
+The vectors run on `ms2000-seq`, the piezo build on `ms2000-pz-crisp`.
 """
 
 from __future__ import annotations
@@ -10,7 +8,6 @@ from __future__ import annotations
 import pytest
 
 from emulator.devices.ms2000.modules.dac_out import code_of, volts_of
-from tests.support.ms2000_builds import PIEZO_LIKE, SEQ_LIKE
 from tests.unit.ms2000.conftest import Harness
 
 ACK = b":A\r\n"
@@ -18,12 +15,12 @@ ACK = b":A\r\n"
 
 @pytest.fixture
 def seq() -> Harness:
-    return Harness("ms2000", SEQ_LIKE)
+    return Harness("ms2000-seq")
 
 
 @pytest.fixture
 def piezo() -> Harness:
-    return Harness("ms2000", PIEZO_LIKE)
+    return Harness("ms2000-pz-crisp")
 
 
 def test_tv_181_set_read_and_quantised_output(seq: Harness) -> None:
@@ -53,9 +50,13 @@ def test_full_scale_and_default_not_saved_ms_dac_1(seq: Harness) -> None:
 
 
 def test_lcd_segment(seq: Harness) -> None:
-    """§9.0: the DAC's LCD segment is `D v.v`."""
-    seq.cmd("WRDAC X=2.46")
-    assert "D 2.5" in seq.get("lcd")[1]
+    """§9.0: the DAC's LCD segment is `D v.v`; beside SEQUENCER, whose segment takes line 2 alone
+    (MS-SEQ-8), it is left out."""
+    dac_only = Harness("ms2000", {"modules": ["LL COMMANDS", "DAC OUT"]})
+    for h in (dac_only, seq):
+        h.cmd("WRDAC X=2.46")
+    assert "D 2.5" in dac_only.get("lcd")[1]
+    assert "D" not in seq.get("lcd")[1]
 
 
 def test_tv_183_piezo_build_drives_focus_axis(piezo: Harness) -> None:

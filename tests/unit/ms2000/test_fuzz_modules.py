@@ -1,13 +1,18 @@
 """Hypothesis: the firmware modules' commands with hostile items, interleaved with base commands,
-polls and the passing of time, on every build that carries them (§9, MS-39, MS-40).
+polls, control inputs (IN0 pulses, a sequencer program, the CRISP optics, the PMT, the focus signal)
+and the passing of time, on every build that carries them (§9, §11, MS-39, MS-40). The builds,
+letters and scripts are in tests/support/module_fuzz.py.
 
 - Nothing raises; every line the controller sends is a form the specification allows.
 - HALT then stops whatever a module runs (scans, arrays, MULTIAXIS patterns, limit seeks, ring-buffer
-  playback, MS-76): once the clock settles nothing is busy and `W X` reads the `axes` observable.
+  playback, autofocus runs, CRISP routines, sequences, MS-76), after the lines that stop what HALT
+  leaves running (a CRISP lock `LK F=79`, tracking `UL`, `ARM Z`, autofocus IN0 mode 103 and `AM`):
+  once the clock settles nothing is busy and `W X` reads the `axes` observable.
 - A line answering `:N-…` at once changes nothing observable: the control channel's snapshot, the
-  card's and axes' settings and every module's own settings and state machine. No exception was
-  needed: HALT, whose `:N-21` says that it did stop a move (MS-76), is no line of the batches, and
-  a search that fails (`SI`, `:N-5` after moving, MS-SI-1) answers late, not at once.
+  card's and axes' settings and every module's own settings and state machine. One exception: an
+  autofocus run that finds no contrast logs 300 (MS-AF-3), at once when its range is 0. HALT, whose
+  `:N-21` says that it did stop a move (MS-76), is no line of the batches, and a search that fails
+  (`SI`, `:N-5` after moving, MS-SI-1) answers late, not at once.
 - Missing, extra and out-of-range items answer the documented code: a command that needs items alone
   `:N-3`, a letter it does not document `:N-2`, a value beyond the 32-bit variable `:N-4` (MS-26,
   MS-40), each changing nothing.
@@ -24,92 +29,30 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from emulator.profile import Profile, load_profile
+from emulator.device import MAIN
 from protocols import ms2000 as p
-from tests.support.fuzz import fuzz_settings, ms2000_items, ms2000_lines
-from tests.support.ms2000_builds import SEQ_LIKE
+from tests.support.fuzz import fuzz_settings, ms2000_items
+from tests.support.module_fuzz import (
+    BUILDS,
+    EXTENDED,
+    WORDS,
+    Control,
+    Step,
+    key_of,
+    modules_of,
+    steps,
+    stop_lines,
+)
 from tests.unit.ms2000.conftest import Harness
 
-#: the bundled builds between them carry every module; SEQ_LIKE adds PLANAR CORRECTION and DAC OUT
-BUILDS: dict[str, Profile[Any]] = {
-    "default": load_profile("ms2000"),
-    "all-modules": load_profile("ms2000-all-modules"),
-    "scan": load_profile("ms2000-scan"),
-    "tracer": load_profile("ms2000-tracer"),
-    "uservo": load_profile("ms2000-uservo"),
-    "seq-like": load_profile("ms2000", SEQ_LIKE),
-}
-#: the letters each module command documents (§9); None: the build's motor axes
-LETTERS: dict[str, str | None] = {
-    "AR": "XYZFT",
-    "AH": "XY",
-    "AIJ": "XY",
-    "SN": "XYZF",
-    "NR": "XYZF",
-    "NV": "XYZF",
-    "MM": "XYZFR",
-    "CCB": "Z",
-    "WRDAC": "X",
-    "PD": "XYZ",
-    "LED": "XYZF",
-    "RM": "XYZF",
-    "LD": None,
-    "ZS": "XYZF",
-    "SI": None,
-    "SECURE": "XYZFT",
-}
-#: base commands that modules extend: `JS F/T` (XY KNOBS), `VB T` (NO CHANGE SETTINGS), `@`
-EXTENDED: dict[str, str | None] = {"JS": "XYZFT", "VB": "XYZT", "@": None}
-#: base commands and polls between the module lines: moves, TTL modes the modules serve, reports
-BASE_LINES = (
-    "/",
-    "W X Y Z",
-    "RS X",
-    "M X=5000 Y=-5000",
-    "R X=-20000",
-    "H X Y",
-    "Z",
-    "TTL X=1",
-    "TTL X=2",
-    "TTL X=4",
-    "TTL X=5",
-    "TTL X=7",
-    "TTL Y=2",
-    "TTL Y=8",
-    "TTL Y=9",
-    "RT Y=5 Z=20",
-    "VB X=1",
-    "VB X=8",
-    "VB X=0",
-    "VB Z=2",
-)
-#: well-formed module lines that set a module running (or stop it), so that the hostile lines also
-#: meet scans, arrays, patterns, searches and playback under way; each where its build has the words
-RUN_SCRIPTS: tuple[tuple[str, ...], ...] = (
-    ("AR X=3 Y=2 Z=0.5 F=-0.5", "AR"),
-    ("AR X=2 Y=3", "TTL X=7", "RM X=1", "RM"),
-    ("AIJ X=2 Y=2",),
-    ("LD X=1000 Y=2000", "LD X+ Y+", "RM F=2", "RM"),
-    ("SN X=1 Y=2 F=1", "NR X=0 Y=0.2 Z=24", "NV X=0 Y=0.05 Z=3 F=1", "SN"),
-    ("MM X=0.5 Y=2 Z=0.1 F=4", "MM"),
-    ("MM X=0.3 Y=1 Z=0.05 F=197", "MM"),
-    ("MM R=80",),
-    ("SI X=0",),
-    ("SI Z=1",),
-    ("CCB Z=1",),
-    ("ZS X=10 Y=3", "TTL X=4", "RM"),
-    ("SECURE X=1",),
-    ("WRDAC X=5",),
-    ("LED X=50",),
-    ("PD X=0.01 Y=2",),
-)
-#: device seconds to let pass: modules run scans, arrays and patterns meanwhile
-WAITS = (0.01, 0.2, 1.0, 3.0)
 ERROR_CODES = {str(int(code)) for code in p.ErrorCode}
-#: every line a controller may send here: an error with a documented code (MS-39); `:A` with or
-#: without values (MS-35); value first, `X=1 :A` (SECURE, LED, WRDAC); colon first, `:X=1 A`;
-#: `N`/`B` (status, `VB X` bit 0); `H`/`L`, `p`/`P` (`VB X` IN1 and button lines); an IN0 mode-5
-#: report, milliseconds then positions (MS-90)
+#: every line a controller may send on its main port here: an error with a documented code (MS-39);
+#: `:A` with or without values (MS-35); value first, `X=1 :A` (SECURE, LED, WRDAC); colon first,
+#: `:X=1 A`; `N`/`B` (status, `VB X` bit 0); `H`/`L`, `p`/`P` (`VB X` IN1 and button lines); an IN0
+#: mode-5 report, milliseconds then positions (MS-90, TRACKING's ends with the sum); and the bare
+#: lines of §11: CRISP's focus-curve samples `<z units> <error>` and the `end` after them, its
+#: `EXTRA X?` LCD line (state, sum and error 5 wide, one space); TRACKING's `LR Z` report and
+#: AUTOFOCUS's `AFINFO`, line by line
 REPLY_LINE = re.compile(
     rb":N-(?P<code>\d+)"
     rb"|:A(?: [ -~]*)?"
@@ -117,52 +60,17 @@ REPLY_LINE = re.compile(
     rb"|:(?:[A-Z_]+=\S+ )+A ?"
     rb"|[NBHLpP]"
     rb"|\d+(?: -?\d+(?:\.\d+)?)* ?"
+    rb"|-?\d+(?:\.\d+)? -?\d+|end"
+    rb"|[A-Za-z1-5][ \d]{4}\d[ \d-]{4}\d "
+    rb"|PhotoTrack state: [ICTPE]|Sum: \d+ min \d+|Error X: -?\d+\.\d{3} Y: -?\d+\.\d{3}"
+    rb"|Quad order: [0-3]|Cal value: \d+\.\d{6}|(?:XY|Z|Cal) range: \d+\.\d{6} mm|Focus: (?:on|off)"
+    rb"|Speed: \d+ %|Range: \d+\.\d{6} mm|Mode: (?:Normal|Hill)|Hill offset: \d+ %"
+    rb"|Min contrast: \d+|Frame offset: \d+\.\d{6}|Last max focus: \d+"
+    rb"|(?:Start|Final) pos: -?\d+(?:\.\d+)?"
 )
 WHERE_VALUE = re.compile(r"-?\d+(?:\.\d+)?")
 #: more than the lines of any batch
 MAX_HALTS = 64
-
-
-def key_of(word: str) -> str:
-    spec = p.lookup(word)
-    assert spec is not None, word
-    return spec.key
-
-
-def words_of(build: str) -> dict[str, str]:
-    """Every word (long name, shortcut, alias) of the module commands the build answers, and of the
-    base commands modules extend, with the letters each documents."""
-    dev = Harness(BUILDS[build]).dev
-    modules = set(dev.cfg.modules)
-    axes = "".join(a.letter for a in dev.axes)
-    words: dict[str, str] = {}
-    for spec in p.COMMANDS:
-        if spec.is_base and spec.key not in EXTENDED:
-            continue
-        if not spec.is_base and not modules.intersection(spec.modules):
-            continue
-        letters = EXTENDED[spec.key] if spec.is_base else LETTERS[spec.key]
-        if spec.key == "SECURE" and "U_SERVO_LK" in modules:
-            letters = "X"  # the servo insert has its position only (MS-SECURE-1)
-        for word in spec.words():
-            words[word] = axes if letters is None else letters
-    return words
-
-
-WORDS = {build: words_of(build) for build in BUILDS}
-
-
-def steps(build: str) -> st.SearchStrategy[list[str | float]]:
-    """A batch: hostile module lines, scripts that start something, waits (floats; each twice as
-    likely) and base lines and polls."""
-    module = ms2000_lines(WORDS[build]).map(lambda line: [line])
-    known = {*WORDS[build], *(line.split()[0] for line in BASE_LINES)}
-    scripts = [list(s) for s in RUN_SCRIPTS if all(line.split()[0] in known for line in s)]
-    runs = st.sampled_from(scripts)
-    base = st.sampled_from(BASE_LINES).map(lambda line: [line])
-    wait = st.sampled_from(WAITS).map(lambda seconds: [seconds])
-    step: st.SearchStrategy[list[str | float]] = st.one_of(module, module, runs, runs, base, wait, wait)
-    return st.lists(step, max_size=12).map(lambda parts: [s for part in parts for s in part])
 
 
 # ---- what is checked --------------------------------------------------------------------------------
@@ -182,25 +90,65 @@ def check_replies(data: bytes) -> None:
         assert match["code"] is None or match["code"].decode() in ERROR_CODES, data
 
 
+def check_frame(h: Harness, data: bytes) -> None:
+    """A TTL REPORT frame on the auxiliary port: per motor axis its id byte and a 32-bit count, then
+    CR (MS-TTLREP-2)."""
+    ids = bytes(axis.s.ll_id for axis in h.dev.axes)
+    assert len(data) == 5 * len(ids) + 1 and data[-1:] == b"\r", data
+    assert data[:-1:5] == ids, data
+
+
+def main_output(h: Harness) -> bytes:
+    """What the controller has sent on its main port; frames on another port are checked on the way."""
+    main = b""
+    for emission in h.take_emissions():
+        if emission.channel == MAIN:
+            main += emission.data
+        else:
+            check_frame(h, emission.data)
+    return main
+
+
+def command(h: Harness, line: str) -> bytes:
+    """`Harness.cmd` with the auxiliary port kept apart: the main port's reply."""
+    h.wait(0)
+    h.write(line.encode("latin-1") + b"\r")
+    return main_output(h)
+
+
+def run_step(h: Harness, step: Step) -> bytes:
+    """Carry out one step; what the main port sent meanwhile."""
+    if isinstance(step, Control):
+        h.control(step.name, **step.params)
+        return main_output(h)
+    if isinstance(step, float):
+        h.wait(step)
+        return main_output(h)
+    return command(h, step)
+
+
 def error_answer(data: bytes) -> bool:
     """`data` is one error line and nothing else."""
     lines = reply_lines(data)
     return len(lines) == 1 and lines[0].startswith(b":N-")
 
 
-def recovers(h: Harness) -> None:
-    """HALT, let the clock settle until nothing is busy, then `W X` is the observable's position.
-    Lines queued behind a command that replies late (`SI`) run once HALT cancels it (MS-13, MS-76)
-    and may start something again: HALT then comes again, at most once per line of the batch."""
+def recovers(h: Harness, build: str) -> None:
+    """Stop what HALT leaves running (a CRISP lock, tracking, a sequence, repeated autofocus), HALT,
+    let the clock settle until nothing is busy, then `W X` is the observable's position. Lines queued
+    behind a command that replies late (`SI`, `AF`) run once HALT cancels it (MS-13, MS-76) and may
+    start something again: HALT then comes again, at most once per line of the batch."""
+    for line in stop_lines(build):
+        check_replies(command(h, line))
     for _ in range(MAX_HALTS):
-        check_replies(h.cmd("\\"))
+        check_replies(command(h, "\\"))
         h.wait(0.5)
         if not h.dev.busy(h.t):
             break
     h.idle(limit=30.0)
     h.wait(0.5)
-    check_replies(h.output())
-    reply = h.cmd("W X")
+    check_replies(main_output(h))
+    reply = command(h, "W X")
     terminator = b"\r" if h.dev.card.vb_flags & 8 else b"\r\n"
     position = h.snapshot()["axes"]["X"]["position"]
     assert WHERE_VALUE.fullmatch(position), position
@@ -247,12 +195,19 @@ FUZZ = fuzz_settings(80)
 def test_module_lines_answer_allowed_forms_and_recover(build: str, data: st.DataObject) -> None:
     h = Harness(BUILDS[build])
     for step in data.draw(steps(build)):
-        if isinstance(step, float):
-            h.wait(step)
-            check_replies(h.output())
-        else:
-            check_replies(h.cmd(step))
-    recovers(h)
+        check_replies(run_step(h, step))
+    recovers(h, build)
+
+
+#: an autofocus run that finds no contrast logs it (MS-AF-3)
+NO_CONTRAST = 300
+
+
+def failed_autofocus(step: str, out: bytes) -> bool:
+    """A bare `AF`/`AFC` answering `:N-5` at once: refused, or a run that found no contrast and
+    logged 300 (at once when `AF Y=0` leaves it no range to scan)."""
+    spec = p.lookup(step.strip())
+    return spec is not None and spec.key in ("AF", "AFC") and reply_lines(out) == [b":N-5"]
 
 
 @pytest.mark.parametrize("build", BUILDS)
@@ -261,19 +216,24 @@ def test_module_lines_answer_allowed_forms_and_recover(build: str, data: st.Data
 def test_module_line_answering_an_error_changes_nothing(build: str, data: st.DataObject) -> None:
     h = Harness(BUILDS[build])
     for step in data.draw(steps(build)):
-        if isinstance(step, float):
-            h.wait(step)
+        if not isinstance(step, str):
+            run_step(h, step)
             continue
         before = observed(h)
-        out = h.cmd(step)
+        out = command(h, step)
         if error_answer(out):
-            assert observed(h) == before, (step, out)
-    recovers(h)
+            after = observed(h)
+            if failed_autofocus(step, out):
+                # refused (a run going, speed 0) it logs nothing; run without contrast, 300
+                logged, kept = after["snapshot"].pop("error_log"), before["snapshot"].pop("error_log")
+                assert logged in (kept, [*kept, NO_CONTRAST]), (step, out)
+            assert after == before, (step, out)
+    recovers(h, build)
 
 
-#: commands that answer `:N-3` alone: settings commands without a bare form (MS-30); `SN` in a
-#: build without SCAN MODULE has no scan to start (MS-SCAN-1)
-NEED_ITEMS = {"CCB", "WRDAC", "PD", "LED", "ZS", "LD", "SI", "NR", "NV", "SECURE"}
+#: commands that answer `:N-3` alone: settings commands without a bare form (MS-30; `AL`, §11);
+#: `SN` in a build without SCAN MODULE has no scan to start (MS-SCAN-1)
+NEED_ITEMS = {"CCB", "WRDAC", "PD", "LED", "ZS", "LD", "SI", "NR", "NV", "SECURE", "AL", "LR", "AFADJ", "AM"}
 #: beyond ±(2³¹−1) (MS-26)
 HUGE = ("99999999999", "-99999999999", "2147483648")
 UPPER = "ABCDEFGHIJKLMNOPQRSTUVWXYZ"
@@ -285,17 +245,26 @@ def needs_items(key: str, modules: tuple[str, ...]) -> bool:
     return key in NEED_ITEMS or (key == "SN" and "SCAN MODULE" not in modules)
 
 
+def refused_whole(build: str, key: str) -> bool:
+    """In a `PZ` build the converter drives the piezo: `WRDAC` is `:N-5` whatever its items
+    (MS-DAC-3)."""
+    return key == "WRDAC" and "PZ" in Harness(BUILDS[build]).dev.cfg.build_name
+
+
 def module_words(build: str) -> dict[str, str]:
-    """The words of module commands only (what an extended base command answers is its own); `SI`
-    with the letters of axes whose encoder kind the build serves (others are `:N-1`, MS-SI-3)."""
+    """The words of module commands that take items (what an extended base command answers is its
+    own; `AFINFO` is a report and reads none); `SI` with the letters of axes whose encoder kind the
+    build serves (others are `:N-1`, MS-SI-3)."""
     dev = Harness(BUILDS[build]).dev
     kinds = {kind for module, kind in SI_KINDS.items() if module in dev.cfg.modules}
     si_axes = "".join(a.letter for a in dev.axes if a.cfg.encoder in kinds)
-    words = {w: letters for w, letters in WORDS[build].items() if key_of(w) not in EXTENDED}
+    words = {w: letters for w, letters in WORDS[build].items() if key_of(w) not in EXTENDED and letters}
     return {w: si_axes if key_of(w) == "SI" else letters for w, letters in words.items()}
 
 
 MODULE_WORDS = {build: module_words(build) for build in BUILDS}
+#: TTL REPORT has no command of its own (`TTL X=6` is the base command's)
+COMMAND_BUILDS = [build for build in BUILDS if MODULE_WORDS[build]]
 
 
 @st.composite
@@ -304,12 +273,10 @@ def bad_line(draw: st.DrawFn, build: str) -> tuple[str, str]:
     words = MODULE_WORDS[build]
     word = draw(st.sampled_from(sorted(words)))
     letters = words[word]
-    faults = ["extra", "huge"] + (
-        ["missing"] if needs_items(key_of(word), BUILDS[build].config.modules) else []
-    )
+    faults = ["extra", "huge"] + (["missing"] if needs_items(key_of(word), modules_of(build)) else [])
     fault = draw(st.sampled_from(faults))
     if fault == "missing":
-        return word, "3"
+        return word, "5" if refused_whole(build, key_of(word)) else "3"
     if fault == "huge":
         letter = draw(st.sampled_from(letters))
         bad = f"{letter}={draw(st.sampled_from(HUGE))}"
@@ -330,17 +297,17 @@ def bad_line(draw: st.DrawFn, build: str) -> tuple[str, str]:
         code = "2"
     items = draw(others)
     items.insert(draw(st.integers(0, len(items))), bad)
-    return " ".join([word, *items]), code
+    return " ".join([word, *items]), "5" if refused_whole(build, key_of(word)) else code
 
 
-@pytest.mark.parametrize("build", BUILDS)
+@pytest.mark.parametrize("build", COMMAND_BUILDS)
 @FUZZ
 @given(data=st.data())
 def test_bad_items_answer_the_documented_code(build: str, data: st.DataObject) -> None:
     line, code = data.draw(bad_line(build))
     h = Harness(BUILDS[build])
     before = observed(h)
-    assert h.cmd(line) == f":N-{code}\r\n".encode(), line
+    assert command(h, line) == f":N-{code}\r\n".encode(), line
     assert observed(h) == before, line
 
 

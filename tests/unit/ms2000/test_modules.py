@@ -174,7 +174,7 @@ def test_plugins_registered_and_schema_fields() -> None:
 
 def test_unknown_module_in_profile_is_refused() -> None:
     with pytest.raises(ProfileError, match="not an emulated module"):
-        Harness(overrides={"modules": ["LL COMMANDS", "CRISP"]})
+        Harness(overrides={"modules": ["LL COMMANDS", "WARP DRIVE"]})
 
 
 def test_without_ino_int_only_mode_0_ms90(make: type[Harness]) -> None:

@@ -1,7 +1,6 @@
 """PLANAR CORRECTION (§9.9) on the manual clock: TV-187…TV-192 and the rest of MS-PC-1…MS-PC-5.
 
-`ms2000-seq` belongs to a later issue (it needs SEQUENCER): the build is the default profile with
-the `SEQ_LIKE` overrides (tests/support/ms2000_builds.py), ms2000-seq without SEQUENCER.
+The build is profile `ms2000-seq` (X and Y on linear encoders at 100000 counts/mm).
 """
 
 from __future__ import annotations
@@ -9,7 +8,6 @@ from __future__ import annotations
 import pytest
 
 from emulator.devices.ms2000.modules.planar import fit
-from tests.support.ms2000_builds import SEQ_LIKE
 from tests.unit.ms2000.conftest import Harness
 
 ACK = b":A\r\n"
@@ -24,7 +22,7 @@ def run(h: Harness, *commands: str) -> None:
 
 @pytest.fixture
 def seq() -> Harness:
-    return Harness("ms2000", SEQ_LIKE)
+    return Harness("ms2000-seq")
 
 
 @pytest.fixture
@@ -125,7 +123,7 @@ def test_tv_189_state_characters(seq: Harness) -> None:
     assert seq.get("planar")["state"] == "G"
     seq.cmd("CCB Z=4")
     assert seq.get("planar")["state"] == "Z"
-    assert "Z" in seq.dev.modules.lcd_segments(seq.t)
+    assert seq.get("lcd")[1].startswith("Z I ")  # first in SEQUENCER's segment (MS-SEQ-8)
     seq.cmd("CCB Z=5")
     assert seq.get("planar") | {"points": None, "correction_counts": None} == {
         "state": "G",
@@ -163,7 +161,7 @@ def test_tv_190_buttons_select_and_disable(seq: Harness) -> None:
 
 def test_home_needs_3_s_without_ring_buffer_ms_pc_4() -> None:
     """MS-PC-4: without RING BUFFER, home held 3 s disables."""
-    h = Harness("ms2000", {**SEQ_LIKE, "modules": ["LL COMMANDS", "INO_INT", "PLANAR CORRECTION"]})
+    h = Harness("ms2000-seq", {"modules": ["LL COMMANDS", "INO_INT", "PLANAR CORRECTION"]})
     run(h, "CCB Z=1", "M X=100000")
     run(h, "CCB Z=2", "M X=0 Y=100000")
     run(h, "CCB Z=3", "CCB Z=4")

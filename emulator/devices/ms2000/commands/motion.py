@@ -141,7 +141,8 @@ class MotionCommands(CommandSet):
         return Reply((prefix + raw,))
 
     def rdadc(self, call: Call) -> Reply:
-        """RDADC: joystick ADCs 128 + round(127 d), Z (focus score) and F read 0 here (MS-117)."""
+        """RDADC: joystick ADCs 128 + round(127 d), Z the focus score (AUTOFOCUS, else 0), F 0
+        (MS-117)."""
         items = [i for i in call.items if i.kind is not Kind.NUMBER]
         if not items:
             raise CommandError(ErrorCode.MISSING_PARAMETERS)
@@ -149,7 +150,7 @@ class MotionCommands(CommandSet):
         readings = {
             "X": 128 + round_half_away(127 * jx),
             "Y": 128 + round_half_away(127 * jy),
-            "Z": 0,
+            "Z": self.ctl.modules.focus_score(call.now),
             "F": 0,
         }
         codes = [

@@ -16,12 +16,21 @@ controller in its own file:
   `BE F` function numbers it implements (MS-86);
 - `observable` / `observe()` (more names: `observables()`), `inputs` / `control_input()`:
   control-channel vocabulary;
-- `lcd_segment()`, `reset()`, `halt()`, and the event hooks `in0_trigger()`, `in0_mode_changed()`,
+- `lcd_segment()`, `lcd_line()` (a module that takes LCD line 2 alone: SEQUENCER), `state_char()`
+  (the one character another module's segment shows), `reset()`, `halt()`, and the event hooks
+  `in0_edge()`, `array_arrival()`, `in0_trigger()`, `in0_mode_changed()`,
   `out0_mode_changed()`, `out0_level()`, `out0_pwm()`, `ttl_trailing_value()`, `move_complete()`,
-  `zeroing()`, `report_mask()`;
+  `zeroing()`, `report_mask()`, `focus_score()`;
 - `extra_params()`: letters added to a base settings command; `refuse()`: a veto on any command.
+- `save_auto()`/`restore_auto()`: settings remembered as soon as they change (MS-111), under
+  `auto.modules.<name>`; `report_fields()`: fields appended to IN0 mode 5 reports.
+- `outranks`: modules whose handlers of a shared command word this one's replace whatever the
+  profile order (CRISP over TRACKING for `LK`/`LR`/`UL`, §9.0); `in0_release()`: IN0 falling
+  edge; `wheel()`: a claim on the focus wheel; `focus_index()`: the focus axis it selects.
 - `rm_x_values` / `rm_x()`: `RM X=` values it serves besides clearing (ARRAY's `RM X=1`,
   MS-ARRAY-6); `playback_mode()`: the ring buffer's `RM F`, for modules that follow it (MS-ARRAY-5).
+- `channels()`: ports it adds beside `main` (TTL REPORT's `aux`, MS-TTLREP-1), known from the
+  profile alone, before any model exists: the daemon creates one port per channel (`channels_of`).
 
 A module sees the controller only as a `ModuleHost` (modules/host.py), and only the controller's
 `ModuleSet` (modules/moduleset.py) calls its hooks, in the order documented there. Adding a module
@@ -35,7 +44,7 @@ import pkgutil
 from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any, ClassVar
 
-from emulator.device import ControlError
+from emulator.device import MAIN, ControlError
 from emulator.devices.ms2000.calls import Call, Param, Pending, Reply
 from emulator.schema import Field
 from protocols.ms2000 import Shape
@@ -63,9 +72,16 @@ class Module:
     button_priority: ClassVar[int] = 100
     observable: ClassVar[str | None] = None
     inputs: ClassVar[frozenset[str]] = frozenset()
+    #: names of modules whose handlers never replace this one's, whatever the profile order (§9.0)
+    outranks: ClassVar[frozenset[str]] = frozenset()
 
     def __init__(self, host: ModuleHost) -> None:
         self.host = host
+
+    @classmethod
+    def channels(cls, knobs: Any) -> tuple[str, ...]:
+        """Channels (ports) the module adds beside `main` under these profile knobs."""
+        return ()
 
     def handlers(self) -> dict[str, Handler]:
         return {}
@@ -77,6 +93,16 @@ class Module:
         return self.name
 
     def lcd_segment(self, now: float) -> str | None:
+        return None
+
+    def lcd_line(self, now: float, states: Mapping[str, str]) -> str | None:
+        """LCD line 2 before the uptime when the module takes the whole line, the other modules'
+        segments left out (SEQUENCER, §9.0); `states`: each module's `state_char()` by name."""
+        return None
+
+    def state_char(self) -> str | None:
+        """The module's state as one character, for a segment that shows it beside others
+        (SEQUENCER's, MS-SEQ-8): PLANAR CORRECTION's and ARRAY's."""
         return None
 
     def observe(self, now: float) -> Any:
@@ -96,14 +122,31 @@ class Module:
     def restore(self, data: dict[str, Any] | None) -> None:
         """Settings from `SS Z` (None: factory)."""
 
+    def save_auto(self) -> dict[str, Any]:
+        """Settings remembered as soon as they change (DLED maxima, MS-111), under
+        `auto.modules.<name>`; the module calls `host.limits_changed()` when they change."""
+        return {}
+
+    def restore_auto(self, data: dict[str, Any] | None) -> None:
+        """The remembered settings at power-up and reset (None: factory)."""
+
     def reset(self, now: float) -> None:
         """Software reset or power-up: state machines back to idle."""
 
     def halt(self, now: float) -> None:
         """HALT: stop whatever the module is running (MS-76)."""
 
+    def in0_edge(self, now: float) -> None:
+        """An IN0 rising edge, whatever the IN0 mode (SEQUENCER's TTL_TRIGGER_RECEIVED, MS-SEQ-2)."""
+
+    def array_arrival(self, now: float) -> None:
+        """ARRAY reached a cell (SEQUENCER's ARRAY_MOVE_DONE, MS-ARRAY-8)."""
+
     def in0_trigger(self, mode: int, now: float) -> None:
         """An IN0 rising edge (or a bare `RM`, MS-RB-5) in one of `in0_modes`."""
+
+    def in0_release(self, mode: int, now: float) -> None:
+        """An IN0 falling edge in one of `in0_modes` (CRISP's level-driven mode 9, MS-CRISP-7)."""
 
     def in0_mode_changed(self, mode: int, now: float) -> None:
         """`TTL X` was set (to any mode)."""
@@ -125,6 +168,15 @@ class Module:
         """A released front-panel button; True when the module claims it."""
         return False
 
+    def wheel(self, counts: float, now: float) -> bool:
+        """The focus wheel turned by `counts`; True when the module takes the turn instead of the
+        axis (CRISP's lock offset, MS-CRISP-6)."""
+        return False
+
+    def focus_index(self) -> int | None:
+        """The hardware index of the focus axis, if the module selects it (CRISP's `UL F`)."""
+        return None
+
     def move_complete(self, axes: list[str], now: float) -> None:
         """A commanded move completed; `axes` are the letters of the axes it moved to the end."""
 
@@ -135,6 +187,19 @@ class Module:
     def report_mask(self) -> int | None:
         """Axes (bit 0 = first motor axis) that IN0 mode 5 reports, if the module selects them."""
         return None
+
+    def focus_score(self, now: float) -> int | None:
+        """The video focus score `RA Z` reads, if the module measures one (AUTOFOCUS, MS-117)."""
+        return None
+
+    def catch_up(self, now: float) -> None:
+        """Bring state that follows from time and motion up to `now`, at the end of every model
+        step (CRISP's lock entering `N` as a focus move starts, MS-CRISP-2), so OUT0 and every
+        observer see it as of the same instant. Only modules that define it are called."""
+
+    def report_fields(self, now: float) -> list[str]:
+        """Fields the module appends to each IN0 mode 5 report line (TRACKING's PMT sum, MS-TRACK-3)."""
+        return []
 
     def rm_x(self, value: int, now: float) -> None:
         """`RM X=value` was accepted: 0 after the ring buffer cleared, or one of `rm_x_values`."""
@@ -159,6 +224,13 @@ MODULES: dict[str, type[Module]] = {}
 def register(cls: type[Module]) -> type[Module]:
     MODULES[cls.name] = cls
     return cls
+
+
+def channels_of(config: Any) -> tuple[str, ...]:
+    """The channels of a controller built from `config` (an `Ms2000Config`): `main`, then those its
+    modules add, in profile order."""
+    extra = [c for name in config.modules if name in MODULES for c in MODULES[name].channels(config.knobs)]
+    return (MAIN, *dict.fromkeys(extra))
 
 
 def known_names() -> tuple[str, ...]:

@@ -15,7 +15,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
-from emulator.devices.ms2000.buttons import NORMAL
+from emulator.devices.ms2000.buttons import LONG, NORMAL
 from emulator.devices.ms2000.calls import (
     Call,
     CommandError,
@@ -43,6 +43,7 @@ STEP_MODE = 7  # IN0 mode 7: next cell (MS-ARRAY-6)
 START_STEPPING = 1  # RM X=1 (MS-ARRAY-6)
 REPEATING = 3  # ring-buffer mode that repeats self-scans (MS-ARRAY-5)
 FN_SELF_SCAN = 7  # BE F function: array self-scan start/stop (Appendix B)
+SEQUENCER = "SEQUENCER"  # beside it a long `@` press starts a self-scan (MS-SEQ-7)
 #: row counts whose row is shown as a letter on the LCD (MS-ARRAY-7)
 LETTER_ROWS = (4, 8, 16)
 # MS-ARRAY-7 state characters
@@ -284,10 +285,16 @@ class ArrayModule(Module):
         self._visit(self.order.cell(self.step), now)
 
     def button(self, name: str, press: str, now: float) -> bool:
-        if (name, press) != ("at", NORMAL):
-            return False
-        self.toggle_self_scan(now)
-        return True
+        """`@` normal: start or stop a self-scan (MS-ARRAY-5); beside SEQUENCER, which takes the
+        normal press while it runs or waits for `@`, a long press starts one (MS-SEQ-7)."""
+        if (name, press) == ("at", NORMAL):
+            self.toggle_self_scan(now)
+            return True
+        if (name, press) == ("at", LONG) and SEQUENCER in self.host.cfg.modules:
+            if self.running != SELF_SCAN:
+                self._begin(SELF_SCAN, now)
+            return True
+        return False
 
     def _begin(self, running: str, now: float) -> None:
         self._stop(START)
@@ -326,6 +333,7 @@ class ArrayModule(Module):
             return
         i, j = self.cell
         self.host.push_event({"ev": "array_arrival", "i": i, "j": j, "t": now})
+        self.host.array_arrival(now)  # SEQUENCER's condition 13 (MS-ARRAY-8)
         self.state = ARRIVED
         last = self.step + 1 >= self.order.count
         if self.running == SELF_SCAN:

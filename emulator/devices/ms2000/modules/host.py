@@ -16,6 +16,7 @@ if TYPE_CHECKING:
     from emulator.devices.ms2000.activity import Activity
     from emulator.devices.ms2000.axis import Axis
     from emulator.devices.ms2000.calls import Rendered, Reply
+    from emulator.devices.ms2000.modules import Handler
     from emulator.devices.ms2000.scheduler import Timer
     from emulator.devices.ms2000.schema import Ms2000Knobs
     from emulator.devices.ms2000.settings import CardSettings
@@ -71,6 +72,10 @@ class ModuleHost(Protocol):
 
     def ack(self) -> Reply: ...
 
+    def base_handler(self, key: str) -> Handler:
+        """The base controller's handler of command `key`, for a module that extends a base command
+        (CRISP's letters of `EXTRA`, its `/` in OUT0 mode 11)."""
+
     def render(self, key: str, shape: Shape | None = None) -> Rendered:
         """How to print a reply of command `key` (its query shape after the profile's overrides)."""
 
@@ -80,10 +85,23 @@ class ModuleHost(Protocol):
     def unsolicited(self, text: str, t: float) -> None:
         """Send a line nobody asked for, with the current terminator (MS-18)."""
 
+    def send_raw(self, data: bytes, t: float, to: str | None = None, channel: str = ...) -> None:
+        """Send bytes at `t` on a channel (`main` by default; TTL REPORT's `aux`, MS-TTLREP-1),
+        unsolicited when `to` is None."""
+
     def log_error(self, code: int) -> None: ...
+
+    def finish_pending(self, t: float) -> None:
+        """The operation of a module's `Pending` without a due time has ended: its reply goes now
+        (an autofocus run, MS-33)."""
 
     def push_event(self, event: dict[str, Any]) -> None:
         """A control-channel event (`{"ev": name, ...}`)."""
+
+    @property
+    def explain(self) -> bool:
+        """A traffic log is kept: only then does a module build its log-only events (per-update
+        samples, emulator/trafficlog.py `LOG_ONLY`), so without a log they cost nothing."""
 
     # ---- motion -------------------------------------------------------------------------------
 
@@ -102,11 +120,16 @@ class ModuleHost(Protocol):
         (default its `S`), without backlash or overshoot legs or the OUT0 pulse of a commanded
         move; busy with right status character `B`, and completes like a commanded move."""
 
+    def halt_all(self, t: float) -> bool:
+        """HALT (MS-76): stop every motion and module activity; True if a commanded move ran.
+        SEQUENCER's `ARM Z` and its `@` stop halt the stage this way (MS-SEQ-6, MS-SEQ-7)."""
+
     def positions_changed(self) -> None:
         """An axis origin moved (SI sets a position): positions are due a save (MS-111)."""
 
     def limits_changed(self) -> None:
-        """Soft limits changed (SI resets them): they are remembered at once (MS-65)."""
+        """Soft limits (SI resets them) or a module's remembered limits (`save_auto`: DLED maxima)
+        changed: they are remembered at once (MS-65, MS-111)."""
 
     # ---- TTL ----------------------------------------------------------------------------------
 
@@ -121,6 +144,9 @@ class ModuleHost(Protocol):
     def report_axes(self) -> list[Axis]:
         """The axes IN0 mode 5 reports: a module's selection (`report_mask`) or all."""
 
+    def report_fields(self, t: float) -> list[str]:
+        """What the modules append to an IN0 mode 5 report (`report_fields`, MS-TRACK-3)."""
+
     # ---- RING BUFFER's RM and the modules that follow it (MS-RB-4, MS-ARRAY-5, MS-ARRAY-6) --------
 
     def rm_x_values(self) -> set[int]:
@@ -131,6 +157,9 @@ class ModuleHost(Protocol):
 
     def playback_mode(self) -> int | None:
         """The ring buffer's `RM F` playback mode (None without RING BUFFER)."""
+
+    def array_arrival(self, t: float) -> None:
+        """ARRAY reached a cell: offered to every module (SEQUENCER's ARRAY_MOVE_DONE, MS-ARRAY-8)."""
 
 
 class AxisHost(Protocol):

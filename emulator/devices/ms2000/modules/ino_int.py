@@ -150,8 +150,9 @@ class InoInt(Module):
 
     def _send_report(self, now: float) -> None:
         ms = round_half_away((now - self._report_start) * 1000)
-        positions = " ".join(self.host.where(a.units(now)) for a in self.host.report_axes())
-        self.host.unsolicited(f"{ms} {positions}", now)
+        fields = [self.host.where(a.units(now)) for a in self.host.report_axes()]
+        fields += self.host.report_fields(now)  # e.g. TRACKING's PMT sum (MS-TRACK-3)
+        self.host.unsolicited(" ".join([str(ms), *fields]), now)
         self._report = self.host.at(now + self._period(), self._send_report)
 
     def _stop_reports(self) -> None:

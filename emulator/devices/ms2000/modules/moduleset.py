@@ -30,13 +30,17 @@ class ModuleSet:
        after it, so a module's `out0_level()` sees its restored state;
     3. while running, each when its event happens: for a `TTL` command, `in0_mode_changed()` (X
        set), `out0_mode_changed()` (Y set), OUT0 re-applied, then `ttl_trailing_value()` (`TTL
-       Y=n v`, MS-24) and OUT0 re-read; `in0_trigger()` on an IN0 edge or a bare `RM`; `button()` on
-       a release, before any base function; `move_complete()` after the base effects of a completed
+       Y=n v`, MS-24) and OUT0 re-read; `in0_trigger()` on an IN0 edge or a bare `RM`, then, for an
+       edge, `in0_edge()`; `array_arrival()` when ARRAY reaches a cell; `button()` on
+       a release, before any base function; `in0_release()` on an IN0 falling edge; `wheel()` on a
+       wheel turn, before the axis moves; `move_complete()` after the base effects of a completed
        move (event, `VB X` lines, OUT0 pulse); `halt()` after every axis stopped; `zeroing()` before
-       ZERO (command or button) zeroes the axes; `save()` at `SS Z`;
-    4. whenever asked: `bu_line()`, `lcd_segment()`, `observe()`, `control_input()`, `report_mask()`,
-       `out0_level()`, `out0_pwm()`, `button_functions()`, `extra_params()` (by a base settings
-       command as it runs).
+       ZERO (command or button) zeroes the axes; `save()` at `SS Z`; `save_auto()` whenever any
+       remembered setting changes (`restore_auto()` beside `restore()` at power-up and reset);
+    4. whenever asked: `bu_line()`, `lcd_segment()`, `lcd_line()`, `state_char()`, `observe()`,
+       `control_input()`, `report_mask()`, `report_fields()`,
+       `out0_level()`, `out0_pwm()`, `focus_score()`, `button_functions()`, `focus_index()`,
+       `extra_params()` (by a base settings command as it runs).
     """
 
     def __init__(self, host: ModuleHost, names: Sequence[str]) -> None:
@@ -51,9 +55,17 @@ class ModuleSet:
     # ---- construction -------------------------------------------------------------------------
 
     def handlers(self) -> dict[str, Handler]:
+        """Later modules replace earlier ones' handlers of a shared word, unless the earlier one
+        `outranks` the later (CRISP keeps `LK`/`LR`/`UL` beside TRACKING, §9.0)."""
         table: dict[str, Handler] = {}
+        owner: dict[str, Module] = {}
         for module in self._modules:
-            table.update(module.handlers())
+            for key, handler in module.handlers().items():
+                holder = owner.get(key)
+                if holder is not None and module.name in holder.outranks:
+                    continue
+                table[key] = handler
+                owner[key] = module
         return table
 
     def query_shapes(self) -> dict[str, Shape]:
@@ -94,7 +106,17 @@ class ModuleSet:
         return lines
 
     def lcd_segments(self, t: float) -> list[str]:
+        """The segments of LCD line 2, or the line of a module that takes it alone (§9.0)."""
+        states = self.state_chars()
+        for module in self._modules:
+            line = module.lcd_line(t, states)
+            if line is not None:
+                return [line] if line else []
         return [s for m in self._modules if (s := m.lcd_segment(t))]
+
+    def state_chars(self) -> dict[str, str]:
+        """Module name -> its one-character state, for modules that have one (MS-SEQ-8)."""
+        return {m.name: c for m in self._modules if (c := m.state_char()) is not None}
 
     def observables(self) -> dict[str, Callable[[float], Any]]:
         return {name: get for m in self._modules for name, get in m.observables().items()}
@@ -117,15 +139,18 @@ class ModuleSet:
         """Each module's `saved.modules.<name>` section, or its factory values (None). A stored
         value the module did not take (it kept its own) is passed to `reject` (MS-111)."""
         for module in self._modules:
-            data = saved.get(module.name)
-            if data is not None and not isinstance(data, dict):
-                reject(f"saved.modules.{module.name}", data)
-                data = None
-            module.restore(data)
-            kept = module.save()
-            for key, value in (data or {}).items():
-                if key in kept and kept[key] is not value and kept[key] != value:
-                    reject(f"saved.modules.{module.name}.{key}", value)
+            path = f"saved.modules.{module.name}"
+            _restore_section(module.restore, module.save, saved.get(module.name), path, reject)
+
+    def save_auto(self) -> dict[str, dict[str, Any]]:
+        """The settings modules remember as soon as they change (DLED maxima, MS-111)."""
+        return {m.name: section for m in self._modules if (section := m.save_auto())}
+
+    def restore_auto(self, saved: dict[str, Any], reject: Callable[[str, Any], None]) -> None:
+        """Each module's `auto.modules.<name>` section, as `restore` does for `SS Z`."""
+        for module in self._modules:
+            path = f"auto.modules.{module.name}"
+            _restore_section(module.restore_auto, module.save_auto, saved.get(module.name), path, reject)
 
     def reset(self, t: float) -> None:
         for module in self._modules:
@@ -145,9 +170,28 @@ class ModuleSet:
         for module in self._modules:
             module.zeroing(t)
 
+    def wheel(self, counts: float, t: float) -> bool:
+        """Offer a wheel turn to the modules; True when one took it (the axis does not move)."""
+        return any(m.wheel(counts, t) for m in self._modules)
+
+    def focus_index(self) -> int | None:
+        return next((i for m in self._modules if (i := m.focus_index()) is not None), None)
+
+    def catch_up_hooks(self) -> list[Callable[[float], None]]:
+        """The `catch_up` of each module that defines one (most define none: nothing per step)."""
+        return [m.catch_up for m in self._modules if type(m).catch_up is not Module.catch_up]
+
+    def report_fields(self, t: float) -> list[str]:
+        """Fields the modules append to an IN0 mode 5 report, in profile order (MS-TRACK-3)."""
+        return [field for m in self._modules for field in m.report_fields(t)]
+
     def report_mask(self) -> int | None:
         """The first module's selection of the axes IN0 mode 5 reports (RING BUFFER's `RM Y`)."""
         return next((mask for m in self._modules if (mask := m.report_mask()) is not None), None)
+
+    def focus_score(self, t: float) -> int:
+        """`RA Z`: the first module's focus score, 0 without one (MS-117)."""
+        return next((score for m in self._modules if (score := m.focus_score(t)) is not None), 0)
 
     # ---- RING BUFFER's RM and the modules that follow it (MS-RB-4, MS-ARRAY-5, MS-ARRAY-6) --------
 
@@ -182,6 +226,19 @@ class ModuleSet:
         module = self._in0_module(mode) if mode else None
         if module is not None:
             module.in0_trigger(mode, t)
+
+    def in0_release(self, mode: int, t: float) -> None:
+        module = self._in0_module(mode) if mode else None
+        if module is not None:
+            module.in0_release(mode, t)
+
+    def in0_edge(self, t: float) -> None:
+        for module in self._modules:
+            module.in0_edge(t)
+
+    def array_arrival(self, t: float) -> None:
+        for module in self._modules:
+            module.array_arrival(t)
 
     def in0_mode_changed(self, mode: int, t: float) -> None:
         for module in self._modules:
@@ -218,3 +275,21 @@ class ModuleSet:
         for module in self._modules:
             table.update(module.button_functions())
         return table
+
+
+def _restore_section(
+    restore: Callable[[dict[str, Any] | None], None],
+    save: Callable[[], dict[str, Any]],
+    data: Any,
+    path: str,
+    reject: Callable[[str, Any], None],
+) -> None:
+    """Restore one module's stored section; a value it did not take goes to `reject` (MS-111)."""
+    if data is not None and not isinstance(data, dict):
+        reject(path, data)
+        data = None
+    restore(data)
+    kept = save()
+    for key, value in (data or {}).items():
+        if key in kept and kept[key] is not value and kept[key] != value:
+            reject(f"{path}.{key}", value)

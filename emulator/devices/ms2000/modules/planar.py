@@ -250,6 +250,9 @@ class PlanarCorrection(Module):
     def lcd_segment(self, now: float) -> str | None:
         return self.state()
 
+    def state_char(self) -> str | None:
+        return self.state()  # shown in SEQUENCER's segment (MS-SEQ-8)
+
     def observe(self, now: float) -> Any:
         plane = self.plane
         return {
