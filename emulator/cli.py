@@ -14,6 +14,7 @@ import click
 from emulator import registry
 from emulator.cli_gcode import gcode
 from emulator.cli_plot import plot
+from emulator.cli_trace import trace
 from emulator.clock import MAX_SCALE, MAX_STEP, MIN_SCALE, check_scale, check_step
 from emulator.control import ControlClient, ControlFailure, RequestError
 from emulator.daemon import Daemon, DaemonOptions
@@ -73,6 +74,7 @@ def main() -> None:
 
 main.add_command(gcode)
 main.add_command(plot)
+main.add_command(trace)
 
 
 @main.command()
@@ -83,6 +85,16 @@ main.add_command(plot)
     multiple=True,
     metavar="NAME[:LINK]",
     help="Serve one device with this profile (repeatable) instead of a rig.",
+)
+@click.option(
+    "--tcp",
+    metavar="[HOST:]PORT",
+    help="Serve the --profile device's main port as a raw TCP socket here (default host 127.0.0.1).",
+)
+@click.option(
+    "--rfc2217",
+    metavar="[HOST:]PORT",
+    help="Serve the --profile device's main port over RFC 2217 (telnet serial port) here.",
 )
 @click.option(
     "--timing", type=click.Choice(TIMINGS), help="Pace every port at its baud rate, or deliver at once."
@@ -111,6 +123,8 @@ main.add_command(plot)
 def serve(
     rig: Path | None,
     profiles: tuple[str, ...],
+    tcp: str | None,
+    rfc2217: str | None,
     timing: str | None,
     time_scale: float,
     ready_file: Path | None,
@@ -122,18 +136,24 @@ def serve(
 ) -> None:
     """Serve RIG (default: the bundled rig, one MP-285 and one MS2000) until Ctrl-C.
 
-    Prints one JSON line per port: {"device", "profile", "port", "path", "pts"}. Only `path` is
-    stable: `pts` changes when a port is re-created (a `disconnect` fault). SIGINT, SIGTERM, SIGHUP
-    and SIGQUIT stop it cleanly; SIGUSR1 reopens the traffic log. To run two daemons at once, give
-    the second its own --link-dir and --control."""
+    Prints one JSON line per port: {"device", "profile", "port", "path", "pts", "transport"}. Only
+    `path` is stable: `pts` changes when a port is re-created (a `disconnect` fault); a network port
+    has `path` socket://HOST:PORT (--tcp) or rfc2217://HOST:PORT (--rfc2217) and no `pts`. SIGINT,
+    SIGTERM, SIGHUP and SIGQUIT stop it cleanly; SIGUSR1 reopens the traffic log. To run two daemons
+    at once, give the second its own --link-dir and --control."""
     logging.basicConfig(
         level=logging.INFO if verbose else logging.WARNING, format="stage-emu: %(message)s", stream=sys.stderr
     )
     if rig is not None and profiles:
         _fail("give either a rig file or --profile options, not both")
+    if tcp is not None and rfc2217 is not None:
+        _fail("give --tcp or --rfc2217, not both (a rig file can serve several ports)")
+    network = ("tcp", tcp) if tcp is not None else ("rfc2217", rfc2217) if rfc2217 is not None else None
+    if network is not None and not profiles:
+        _fail(f"--{network[0]} goes with --profile (in a rig file, give the port `transport: {network[0]}`)")
     try:
         if profiles:
-            spec = rig_from_profiles(list(profiles))
+            spec = rig_from_profiles(list(profiles), network)
         else:
             spec = load_rig(rig if rig is not None else bundled_dir() / DEFAULT_RIG)
         options = DaemonOptions(timing, time_scale, ready_file, log_traffic, state_dir, control, link_dir)

@@ -240,6 +240,7 @@ def _describe(runner: DeviceRunner) -> dict[str, Any]:
                 "port": ch.name,
                 "path": ch.transport.path if ch.transport else None,
                 "pts": ch.transport.device_path if ch.transport else None,
+                "transport": ch.transport.kind if ch.transport else None,
                 "attached": ch.attached,
                 "host": ch.host.describe() if ch.host else None,
                 "timing": ch.timing,

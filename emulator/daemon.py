@@ -48,7 +48,7 @@ from emulator.runtime import (
     write_private_atomic,
 )
 from emulator.trafficlog import TrafficLog
-from emulator.transports.pty import PtyTransport
+from emulator.transports import create as create_transport
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT)
 #: the same loop error is logged at most once per this many seconds (e.g. out of descriptors)
@@ -165,8 +165,9 @@ class Daemon:
             for port in spec.ports:
                 default = spec.name if port.channel == "main" else f"{spec.name}.{port.channel}"
                 link = port.link or links / default
-                self._ownership.record(LINK, link)
-                transport = PtyTransport(link, port.mode, loop)
+                if port.transport == "pty":
+                    self._ownership.record(LINK, link)
+                transport = create_transport(port, link, loop)
                 timing = self.options.timing or port.timing or REALISTIC
                 runner.attach_transport(port.channel, transport, timing)
                 line = {
@@ -175,6 +176,7 @@ class Daemon:
                     "port": port.channel,
                     "path": transport.path,
                     "pts": transport.device_path,
+                    "transport": transport.kind,
                 }
                 ready.append(line)
             log.info("%s: %s (%s) ready", spec.name, spec.profile.name, spec.profile.description)

@@ -81,7 +81,10 @@ class Channel:
     from_host: Pacer = field(default_factory=Pacer)
     faults: Faults = field(default_factory=Faults)
     stats: PortStats = field(default_factory=PortStats)
+    #: the line mismatch last warned about, and one not yet warned about because no byte has
+    #: crossed the line since the settings began to differ (emulator/runner.py `_check_mismatch`)
     reported_mismatch: tuple[Any, ...] = ()
+    pending_mismatch: tuple[Any, ...] = ()
     #: what the pacing was last computed from (paced, device settings, host settings)
     paced_for: tuple[Any, ...] = ()
     #: the (host, device) settings last checked for a mismatch

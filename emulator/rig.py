@@ -6,15 +6,21 @@ devices:
     profile: ms2000             # bundled name or path (relative to the rig file)
     overrides:                  # optional, merged onto the profile like one more `extends`
       knobs: {empty_line_reply: ignore}
-    ports:                      # optional; default: one PTY on the main channel
+    ports:                      # optional; every channel of the device gets a PTY regardless
       - channel: main           # the device's port (most devices have only `main`)
-        type: pty
-        link: ~/dev/ttyStage    # optional; default <runtime dir>/<name>
-        mode: 0600              # pts permissions (octal)
+        transport: pty          # pty (default), tcp (socket://) or rfc2217 (rfc2217://)
+        link: ~/dev/ttyStage    # pty only, optional; default <runtime dir>/<name> (<name>.<channel>)
+        mode: 0600              # pty: pts permissions (octal)
+        bind: 127.0.0.1         # tcp/rfc2217 only: the address to listen on (default 127.0.0.1)
+        port: 7001              # tcp/rfc2217 only, required: TCP port (0: any free one, announced)
         timing: realistic       # or fast
 
 A rig file is read like a profile (`emulator.yamlsource.read_source`: regular file, 1 MiB, UTF-8,
 node and depth limits); its `description` is one line like a profile's.
+
+A device has one channel or more (`Device.channels`, known from its profile through the family:
+a TTL REPORT build adds `aux`, MS-TTLREP-1). `ports` configures them; a channel it does not list
+gets a default PTY, linked next to the main port's link when that is given (`<link>.<channel>`).
 """
 
 from __future__ import annotations
@@ -25,6 +31,7 @@ from typing import Any
 
 from emulator.line import TIMINGS
 from emulator.profile import DESCRIPTION, Profile, ProfileError, load_profile
+from emulator.registry import channels_of
 from emulator.schema import (
     Choice,
     Int,
@@ -38,9 +45,12 @@ from emulator.schema import (
     required,
     setting,
 )
+from emulator.transports import KINDS, NETWORK_KINDS
 from emulator.yamlsource import SourceError, read_source
 
 NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}"
+#: where a network port listens unless its `bind` says otherwise: this machine only
+DEFAULT_BIND = "127.0.0.1"
 
 
 @dataclass(frozen=True)
@@ -59,12 +69,24 @@ class Anything(Type):
 @dataclass(frozen=True)
 class RigPort(Schema):
     channel: str = setting(Str(), "main", doc="device channel this port carries")
-    type: str = setting(Choice(("pty",)), "pty", doc="transport")
+    transport: str = setting(Choice(KINDS), "pty", doc="pty, tcp (raw socket) or rfc2217")
     link: str | None = setting(Nullable(Str()), None, doc="stable path of the port (a symlink to the pts)")
-    mode: int = setting(Int(0, 0o777), 0o600, doc="permissions of the pts device node")
+    mode: int = setting(Int(0, 0o777), 0o600, doc="permissions of the pts device node (pty)")
+    bind: str | None = setting(Nullable(Str()), None, doc=f"tcp/rfc2217: address (default {DEFAULT_BIND})")
+    port: int | None = setting(Nullable(Int(0, 65535)), None, doc="tcp/rfc2217: TCP port (0: any free one)")
     timing: str | None = setting(
         Nullable(Choice(TIMINGS)), None, doc="realistic (paced at the baud rate) or fast"
     )
+
+    def validate(self, path: tuple[str | int, ...]) -> None:
+        if self.transport in NETWORK_KINDS:
+            if self.port is None:
+                raise SchemaError((*path, "port"), f"a {self.transport} port needs a TCP port number")
+            wrong = "link" if self.link is not None else None
+        else:
+            wrong = "bind" if self.bind is not None else "port" if self.port is not None else None
+        if wrong:
+            raise SchemaError((*path, wrong), f"does not apply to a {self.transport} port")
 
 
 @dataclass(frozen=True)
@@ -87,10 +109,15 @@ class RigFile(Schema):
 @dataclass(frozen=True)
 class PortSpec:
     channel: str
-    type: str
+    transport: str
     link: FsPath | None
     mode: int
     timing: str | None
+    bind: str = DEFAULT_BIND
+    port: int | None = None  # tcp/rfc2217 only
+
+    def address(self) -> str:
+        return f"{self.bind}:{self.port}"
 
 
 @dataclass(frozen=True)
@@ -119,11 +146,19 @@ def load_rig(path: FsPath) -> Rig:
     for index, dev in enumerate(raw.devices):
         overrides = located.subtree(("devices", index, "overrides")) if dev.overrides else None
         profile = load_profile(dev.profile, overrides, relative_to=path.parent)
-        ports = dev.ports or (Section(RigPort).check({}, ()),)
         specs = tuple(
-            PortSpec(p.channel, p.type, _link(p.link, path.parent), p.mode, p.timing) for p in ports
+            PortSpec(
+                p.channel,
+                p.transport,
+                _link(p.link, path.parent),
+                p.mode,
+                p.timing,
+                p.bind or DEFAULT_BIND,
+                p.port,
+            )
+            for p in dev.ports or ()
         )
-        devices.append(DeviceSpec(dev.name, profile, specs))
+        devices.append(DeviceSpec(dev.name, profile, with_every_channel(profile, specs)))
     rig = Rig(str(path), tuple(devices))
     problem = check_rig(rig)
     if problem:
@@ -138,26 +173,68 @@ def _link(link: str | None, base: FsPath) -> FsPath | None:
     return path if path.is_absolute() else base / path
 
 
+def with_every_channel(profile: Profile, listed: tuple[PortSpec, ...]) -> tuple[PortSpec, ...]:
+    """`listed`, then a default PTY for each channel of the device they leave out: `main` when
+    nothing is listed, a TTL REPORT build's `aux` beside it (MS-5), linked next to the main link."""
+    main = next((p for p in listed if p.channel == "main"), None)
+    have = {p.channel for p in listed}
+    added = tuple(
+        PortSpec(channel, "pty", _beside(main.link if main else None, channel), 0o600, None)
+        for channel in channels_of(profile)
+        if channel not in have
+    )
+    return listed + added
+
+
+def _beside(main_link: FsPath | None, channel: str) -> FsPath | None:
+    if main_link is None or channel == "main":
+        return None  # the daemon's default (<name> or <name>.<channel> in its link directory)
+    return main_link.with_name(f"{main_link.name}.{channel}")
+
+
 def check_rig(rig: Rig) -> str:
-    """Cross-device checks: unique names, one port per channel, unique links."""
+    """Cross-device checks: unique names, one port per channel the device has, unique links."""
     names = [d.name for d in rig.devices]
     duplicate = next((n for n in names if names.count(n) > 1), None)
     if duplicate:
         return f"device name {duplicate!r} is used twice"
     links: list[FsPath] = []
+    addresses: list[str] = []
     for dev in rig.devices:
         channels = [p.channel for p in dev.ports]
         again = next((c for c in channels if channels.count(c) > 1), None)
         if again:
             return f"device {dev.name!r} has two ports on channel {again!r}"
+        has = channels_of(dev.profile)
+        unknown = next((c for c in channels if c not in has), None)
+        if unknown:
+            return f"device {dev.name!r} has no channel {unknown!r} (it has: {', '.join(has)})"
         links.extend(p.link for p in dev.ports if p.link is not None)
+        addresses.extend(p.address() for p in dev.ports if p.transport in NETWORK_KINDS and p.port)
     twice = next((link for link in links if links.count(link) > 1), None)
-    return f"link {twice} is used by two ports" if twice else ""
+    if twice:
+        return f"link {twice} is used by two ports"
+    taken = next((a for a in addresses if addresses.count(a) > 1), None)
+    return f"address {taken} is used by two ports" if taken else ""
 
 
-def rig_from_profiles(entries: list[str]) -> Rig:
+def parse_address(text: str) -> tuple[str, int]:
+    """`HOST:PORT`, `[IPv6]:PORT` or a bare `PORT` (on DEFAULT_BIND); raises ValueError."""
+    host, colon, number = text.rpartition(":")
+    if not number.isdigit() or not 0 <= int(number) <= 65535:
+        raise ValueError(f"{text!r} is not HOST:PORT with a port number 0-65535")
+    host = host.removeprefix("[").removesuffix("]")
+    if colon and not host:
+        raise ValueError(f"{text!r} has no host before the ':'")
+    return host or DEFAULT_BIND, int(number)
+
+
+def rig_from_profiles(entries: list[str], network: tuple[str, str] | None = None) -> Rig:
     """`--profile NAME[:LINK]` options as a rig: the device is named after its profile, repeats
-    of a profile get `-2`, `-3`... (`--profile mp285 --profile mp285` serves mp285 and mp285-2)."""
+    of a profile get `-2`, `-3`... (`--profile mp285 --profile mp285` serves mp285 and mp285-2).
+    `network` (kind, address) serves the main port of the one profile on tcp or rfc2217 instead."""
+    if network is not None and len(entries) != 1:
+        raise ProfileError(f"--{network[0]} serves one --profile; for several devices write a rig file")
     devices = []
     counts: dict[str, int] = {}
     for entry in entries:
@@ -165,9 +242,20 @@ def rig_from_profiles(entries: list[str]) -> Rig:
         profile = load_profile(ref)
         index = counts.get(profile.name, 0)
         counts[profile.name] = index + 1
-        port = PortSpec("main", "pty", FsPath(link).expanduser().absolute() if link else None, 0o600, None)
+        if network is None:
+            port = PortSpec(
+                "main", "pty", FsPath(link).expanduser().absolute() if link else None, 0o600, None
+            )
+        elif link:
+            raise ProfileError(f"--profile {entry}: a link does not apply to a {network[0]} port")
+        else:
+            try:
+                bind, number = parse_address(network[1])
+            except ValueError as exc:
+                raise ProfileError(f"--{network[0]}: {exc}") from None
+            port = PortSpec("main", network[0], None, 0o600, None, bind, number)
         name = profile.name if index == 0 else f"{profile.name}-{index + 1}"
-        devices.append(DeviceSpec(name, profile, (port,)))
+        devices.append(DeviceSpec(name, profile, with_every_channel(profile, (port,))))
     rig = Rig("--profile", tuple(devices))
     problem = check_rig(rig)
     if problem:

@@ -3,8 +3,8 @@ output onto its ports, applies injected faults, logs traffic and line mismatches
 
 With a traffic log the runner sets the model's `explain` and logs what the model reports: its notes
 on received bytes, each emission's summary when its last byte leaves the port, and its pushed events, `move`
-records among them (a model builds them only while explaining; they are not published). It adds what it drops
-itself (emulator/trafficlog.py has the record format).
+records and the other `LOG_ONLY` ones among them (a model builds them only while explaining; they are not
+published). It adds what it drops itself (emulator/trafficlog.py has the record format).
 
 The runner is transport-agnostic and clock-agnostic. With a real or scaled clock and an asyncio loop
 it arms one timer for the next thing due (no polling); with a manual clock it runs whenever the test
@@ -22,7 +22,7 @@ from emulator.clock import Clock
 from emulator.device import Device, Emission, HostLine
 from emulator.line import REALISTIC, mismatches, settings_char_time
 from emulator.port import CORRUPT_MASK, Channel, Faults, fault_params, unsent
-from emulator.trafficlog import MOVE, DeviceTraffic, TrafficLog
+from emulator.trafficlog import LOG_ONLY, DeviceTraffic, TrafficLog
 from emulator.transports.base import Transport
 
 log = logging.getLogger("stage_emu.runner")
@@ -134,7 +134,7 @@ class DeviceRunner:
         ch.stats.input_discarded += unheard
         ch.stats.dropping = False
         self._clear_wire(ch, "the host hung up")
-        ch.reported_mismatch = ()
+        ch.reported_mismatch = ch.pending_mismatch = ()
         ch.checked_for = ()
         lost = f"; {unheard} bytes still on the wire discarded" if unheard else ""
         log.info("%s/%s: host detached%s", self.name, ch.name, lost)
@@ -153,6 +153,8 @@ class DeviceRunner:
     def host_data(self, ch: Channel, data: bytes) -> None:
         # logged by the model once received (or by `_due_input` if a hung device hears nothing)
         ch.from_host.push(self.clock.now(), data)  # even when hung: the bytes take their wire time
+        if ch.pending_mismatch:
+            self._report_mismatch(ch)
         self.pump()
 
     def input_discarded(self, ch: Channel, count: int) -> None:
@@ -263,7 +265,7 @@ class DeviceRunner:
                 self._traffic.events(self.device.now, events)
             if self._on_event is not None:
                 for event in events:
-                    if event["ev"] != MOVE:  # traffic-log records: subscribers see the same with or without
+                    if event["ev"] not in LOG_ONLY:  # subscribers see the same with or without a log
                         self._on_event(self.name, event)
 
     def _route(self, emission: Emission) -> None:
@@ -296,6 +298,8 @@ class DeviceRunner:
                 dropped = len(data)
                 if ch.transport is not None and ch.attached:
                     dropped = ch.transport.write(data)
+                    if ch.pending_mismatch:
+                        self._report_mismatch(ch)
                     if dropped:
                         self._output_dropped(ch, dropped)
                     elif ch.stats.dropping:
@@ -337,19 +341,26 @@ class DeviceRunner:
             ch.checked_for = (ch.host, own)
             differing = mismatches(own, ch.host)
             key = (tuple(differing), ch.host, own) if differing else ()
-            if key == ch.reported_mismatch:
-                continue
-            ch.reported_mismatch = key
-            if differing:
-                effect = self.device.mismatch_effect(ch.host, ch.name)
-                log.warning(
-                    "%s/%s: host uses %s, device expects %s%s",
-                    self.name,
-                    ch.name,
-                    ch.host.filled(own).describe(),
-                    own.describe(),
-                    f"; {effect}" if effect else "",
-                )
+            if not differing:
+                ch.reported_mismatch = ()
+            # warned about once a byte crosses at these settings (`_report_mismatch`): a host program
+            # that opens the port at its default speed and sets its own before writing is no mismatch
+            ch.pending_mismatch = key if key != ch.reported_mismatch else ()
+
+    def _report_mismatch(self, ch: Channel) -> None:
+        """Log the pending mismatch: a byte crossed the line while the settings differ."""
+        key, ch.pending_mismatch = ch.pending_mismatch, ()
+        ch.reported_mismatch = key
+        _, host, own = key
+        effect = self.device.mismatch_effect(host, ch.name)
+        log.warning(
+            "%s/%s: host uses %s, device expects %s%s",
+            self.name,
+            ch.name,
+            host.filled(own).describe(),
+            own.describe(),
+            f"; {effect}" if effect else "",
+        )
 
     def _next_due(self, early: float) -> float | None:
         """The earliest of: the device's next event, a port's next paced byte (output released
@@ -394,7 +405,7 @@ class DeviceRunner:
         self.device.explain = self._traffic is not None
         for ch in self.channels.values():
             self._clear_wire(ch, "a factory reset")
-            ch.reported_mismatch = ()
+            ch.reported_mismatch = ch.pending_mismatch = ()
             ch.checked_for = ()
             if ch.attached:
                 self.device.line_changed(ch.host, now, ch.name)

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import fcntl
 import json
 import logging
 import os
@@ -193,6 +192,8 @@ class Ownership:
     _entries: list[dict[str, Any]] = field(default_factory=list)
 
     def acquire(self) -> None:
+        import fcntl  # POSIX only, and only the daemon locks: the models load on Windows too
+
         owners = private_dir(self.directory / "owners", "owner records folder", ours=True)
         self.reap(owners)
         path = owners / f"{os.getpid()}.lock"
@@ -219,6 +220,8 @@ class Ownership:
 
     def reap(self, owners: Path) -> None:
         """Remove what dead daemons left behind (only what they listed and is still theirs)."""
+        import fcntl  # POSIX only (see Ownership.acquire)
+
         for lock in sorted(owners.glob("*.lock")):
             if not lock.stem.isdigit():
                 continue
@@ -255,6 +258,8 @@ def live_claims(owners: Path, exclude: Path) -> set[str]:
 
 def _held_entries(lock: Path) -> list[dict[str, Any]] | None:
     """The entries of a lock file whose daemon is alive; None when nobody holds it."""
+    import fcntl  # POSIX only (see Ownership.acquire)
+
     try:
         fd = os.open(lock, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
     except OSError:

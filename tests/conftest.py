@@ -13,6 +13,10 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     group.addoption("--port", help="serial port of a real controller: run tests/conformance against it")
     group.addoption("--device", choices=FAMILIES, help="which controller is on --port")
     group.addoption("--baud", type=int, help="baud rate of the real controller (default: the profile's)")
+    group.addoption(
+        "--aux-port",
+        help="the real controller's auxiliary port (TTL REPORT frames); tests needing it skip without",
+    )
 
 
 def pytest_configure(config: pytest.Config) -> None:

@@ -4,7 +4,9 @@ Tests open the port with pyserial exactly as a host program would. `open_target(
 returns a `Target`; on the emulator each call gets a factory-fresh device (same daemon reused per
 profile/overrides/timing), on a real port the profile only supplies line settings and tests that ask
 for non-default profiles or overrides are skipped (mark tests that need the control channel
-`@pytest.mark.control`, exact timing `@pytest.mark.timing`).
+`@pytest.mark.control`, exact timing `@pytest.mark.timing`). A device's second port (the MS2000's
+TTL REPORT `aux`) opens with `Target.open_aux()`: served next to the main port on the emulator,
+`--aux-port PATH` on real hardware (skipped without it).
 """
 
 from __future__ import annotations
@@ -17,10 +19,27 @@ from typing import Any
 
 import pytest
 import serial
+from serial import rfc2217
 
+import emulator.urlhandler  # noqa: F401  (registers stageemu:// URLs for --port)
 from emulator.control import ControlClient
 from emulator.profile import Profile, load_profile
+from emulator.registry import channels_of
 from tests.support.daemon import RunningDaemon, start_daemon
+
+
+class Rfc2217Port(rfc2217.Serial):
+    """pyserial's RFC 2217 client, except that a new read timeout stays in the client: pyserial
+    renegotiates every line setting with the server (0.1 s or more) on each timeout change, which
+    the vectors make before most reads."""
+
+    @property
+    def timeout(self) -> float | None:
+        return self._timeout
+
+    @timeout.setter
+    def timeout(self, value: float | None) -> None:
+        self._timeout = value
 
 
 @dataclass
@@ -34,10 +53,19 @@ class Target:
     device: str | None = None
     control: ControlClient | None = None
     baud: int | None = None
+    #: the auxiliary port (None: the device has none, or `--aux-port` was not given)
+    aux_path: str | None = None
     _ports: list[serial.Serial] = field(default_factory=list)
 
-    def open(self, **overrides: Any) -> serial.Serial:
-        """The port opened with the profile's line settings, as a host program would."""
+    def open_aux(self, **overrides: Any) -> serial.Serial:
+        """The auxiliary port, at the main port's settings (MS-5)."""
+        if self.aux_path is None:
+            pytest.skip("needs the auxiliary port (--aux-port on a real controller)")
+        return self.open(path=self.aux_path, **overrides)
+
+    def open(self, path: str | None = None, **overrides: Any) -> serial.Serial:
+        """The port (default: the main one) opened with the profile's line settings, as a host
+        program would."""
         line = self.profile.line
         settings: dict[str, Any] = {
             "baudrate": self.baud or line.baud,
@@ -50,7 +78,7 @@ class Target:
             "timeout": 2.0,
         }
         settings.update(overrides)
-        port = serial.Serial(self.path, **settings)
+        port = serial.serial_for_url(path or self.path, **settings)  # a path, rfc2217:// or stageemu:// URL
         self._ports.append(port)
         return port
 
@@ -87,6 +115,7 @@ class DaemonPool:
             workdir = self._workdir / f"d{len(self._daemons)}-{'x' if dedicated else ''}{abs(hash(key))}"
             workdir.mkdir(parents=True, exist_ok=True)
             rig = workdir / "rig.yaml"
+            channels = channels_of(load_profile(profile, overrides=overrides))
             rig.write_text(
                 json.dumps(
                     {
@@ -96,13 +125,13 @@ class DaemonPool:
                                 "name": "dut",
                                 "profile": profile,
                                 "overrides": overrides,
-                                "ports": [{"timing": timing}],
+                                "ports": [{"channel": c, "timing": timing} for c in channels],
                             }
                         ],
                     }
                 )
             )
-            daemon = start_daemon(workdir, [str(rig)], expect_ports=1)
+            daemon = start_daemon(workdir, [str(rig)], expect_ports=len(channels))
             if dedicated:
                 return daemon
             self._daemons[key] = daemon
@@ -140,7 +169,9 @@ def open_target(request: pytest.FixtureRequest, daemon_pool: DaemonPool) -> Iter
                 pytest.skip(f"test for {loaded.family}, port has {family}")
             if overrides or dedicated or profile != family:
                 pytest.skip(f"needs emulator profile {profile} {overrides or ''}")
-            target = Target(real_port, family, loaded, True, baud=request.config.getoption("--baud"))
+            baud = request.config.getoption("--baud")
+            aux = request.config.getoption("--aux-port")
+            target = Target(real_port, family, loaded, True, baud=baud, aux_path=aux)
         else:
             daemon = daemon_pool.get(profile, overrides, timing, dedicated)
             if dedicated:
@@ -150,7 +181,8 @@ def open_target(request: pytest.FixtureRequest, daemon_pool: DaemonPool) -> Iter
             control.resume()
             control.fault("dut", "clear")
             control.reset("dut")
-            target = Target(daemon.port("dut"), loaded.family, loaded, False, "dut", control)
+            aux = next((p["path"] for p in daemon.ports if p["port"] == "aux"), None)
+            target = Target(daemon.port("dut"), loaded.family, loaded, False, "dut", control, aux_path=aux)
         opened.append(target)
         return target
 

@@ -21,6 +21,7 @@ from tests.support.memory_transport import MemoryTransport
 
 PROBE = str(Path(__file__).parent.parent / "support" / "probe.yaml")
 CHAR = 10 / 9600
+HOST_9600 = LineSettings(9600, None, None, 1, False, False)
 
 
 @dataclass
@@ -36,6 +37,7 @@ def make(
     overrides: dict | None = None,
     traffic: TrafficLog | None = None,
     port: MemoryTransport | None = None,
+    attach: LineSettings = HOST_9600,
 ) -> Host:
     clock = ManualClock()
     profile = load_profile(PROBE, overrides=overrides)
@@ -48,7 +50,7 @@ def make(
     )
     port = port or MemoryTransport()
     runner.attach_transport("main", port, timing)
-    port.attach(LineSettings(9600, None, None, 1, False, False))
+    port.attach(attach)
     return Host(clock, runner, port, events)
 
 
@@ -125,11 +127,59 @@ def test_mismatch_logged_once_per_change(caplog: pytest.LogCaptureFixture) -> No
         port.sink.host_line(LineSettings(19200, None, None, 1, False, False))
         port.sink.host_line(LineSettings(19200, None, None, 1, False, False))
         port.send(b"E x\r")
+        port.send(b"E y\r")
         port.sink.host_line(LineSettings(19200, None, None, 2, False, False))
+        port.send(b"E z\r")
     lines = [r.getMessage() for r in caplog.records]
     assert lines == [
         "probe-0/main: host uses 19200 8N1, device expects 9600 8N1; the probe ignores it",
         "probe-0/main: host uses 19200 8N2, device expects 9600 8N1; the probe ignores it",
+    ]
+
+
+def mismatch_warnings(caplog: pytest.LogCaptureFixture) -> list[str]:
+    return [r.getMessage() for r in caplog.records if "host uses" in r.getMessage()]
+
+
+def test_a_host_that_fixes_its_settings_before_writing_gets_no_warning(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """boost::asio opens a port at the pty's default speed, then sets its own before writing."""
+    port = MemoryTransport()
+    with caplog.at_level("WARNING"):
+        h = make(REALISTIC, port=port, attach=LineSettings(38400, None, None, 1, False, False))
+        port.sink.host_line(LineSettings(9600, None, None, 1, False, False))
+        port.send(b"E hi\r")
+        h.clock.advance(20 * CHAR)
+    assert port.take() == b"hi\r"
+    assert mismatch_warnings(caplog) == []
+
+
+def test_writing_at_mismatched_settings_warns_once(caplog: pytest.LogCaptureFixture) -> None:
+    port = MemoryTransport()
+    with caplog.at_level("WARNING"):
+        h = make(REALISTIC, port=port, attach=LineSettings(38400, None, None, 1, False, False))
+        assert mismatch_warnings(caplog) == [], "no byte has crossed yet"
+        port.send(b"E hi\r")
+        h.clock.advance(20 * CHAR)
+        port.send(b"E again\r")
+        h.clock.advance(20 * CHAR)
+    assert mismatch_warnings(caplog) == [
+        "probe-0/main: host uses 38400 8N1, device expects 9600 8N1; the probe ignores it"
+    ]
+
+
+def test_device_output_to_a_mismatched_host_warns_once(caplog: pytest.LogCaptureFixture) -> None:
+    port = MemoryTransport()
+    with caplog.at_level("WARNING"):
+        h = make(FAST, port=port, attach=LineSettings(38400, None, None, 1, False, False))
+        runner = h.runner
+        assert mismatch_warnings(caplog) == []
+        runner.call(lambda now: runner.device.control_input("say", {"text": "one"}, now))
+        runner.call(lambda now: runner.device.control_input("say", {"text": "two"}, now))
+    assert port.take() == b"onetwo"
+    assert mismatch_warnings(caplog) == [
+        "probe-0/main: host uses 38400 8N1, device expects 9600 8N1; the probe ignores it"
     ]
 
 

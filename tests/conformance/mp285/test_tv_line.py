@@ -120,11 +120,12 @@ def test_tv_003_line_mismatch_ignore_passes_bytes(open_target: OpenTarget) -> No
 def test_tv_003_mismatch_is_logged_once(
     open_target: OpenTarget, daemon_pool: DaemonPool, settings: dict[str, object], line: str
 ) -> None:
-    """TV-3 (MP-4, MP-5): one warning naming device, port, both settings and the knob in force; the
-    traffic that follows logs nothing more."""
+    """TV-3 (MP-4, MP-5): one warning naming device, port, both settings and the knob in force, once
+    a byte crosses the line; the traffic that follows logs nothing more."""
     log = DaemonLog(daemon_pool.get("mp285", None, "realistic", False))
     log.drain()
     host = connect(open_target, **settings)
+    host.send(GET_POSITION)
     assert log.wait_line("host uses") == f"stage-emu: {line}"
     host.send(GET_POSITION)
     host.port.timeout = 0.1

@@ -1,0 +1,224 @@
+"""An RFC 2217 port (`rfc2217://HOST:PORT`): a serial port over telnet, with its line settings.
+
+The telnet and COM-PORT-OPTION protocol is pyserial's own server side, `serial.rfc2217.PortManager`:
+it filters what the client sends (`filter()` yields the data bytes and answers the options) and
+sets what the client negotiates on a serial-like object, here `ComPortState`. Those settings reach
+the device as a `HostLine`, exactly as a PTY host's termios settings do, so a host at the wrong baud
+rate gets the same garbled bytes; parity and data bits, which a PTY cannot carry, are seen for real.
+Settings the client never set stay None (the device's own are assumed), like on a PTY.
+
+A client sets baud, data size, parity and stop size as separate messages, then the flow control.
+They are applied as one change (one mismatch warning, not one per message) when the flow control
+arrives, when the host next sends data, or once SETTLE_S passes with no further setting.
+
+DTR, RTS and break are accepted and logged; a `HostLine` has no field for them (no model uses them).
+The device side's lines read CTS, DSR and CD on, RI off: a powered controller on a direct cable.
+
+Bad input ends the connection with a log line, never the daemon: a malformed option (pyserial's
+parser raises on it), a subnegotiation longer than any RFC 2217 one, or a client that keeps
+negotiating without reading the answers.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import struct
+from collections.abc import Callable
+from typing import Any, cast
+
+import serial
+from serial import rfc2217
+
+from emulator.device import HostLine
+from emulator.transports.pty import OUTPUT_LIMIT
+from emulator.transports.tcp import NetworkTransport
+
+log = logging.getLogger("stage_emu.rfc2217")
+
+PARITIES = {serial.PARITY_NONE: "none", serial.PARITY_EVEN: "even", serial.PARITY_ODD: "odd"}
+MAX_BAUD = 10_000_000
+#: longest subnegotiation accepted: RFC 2217's longest is 6 bytes (option, command, a 4-byte baud rate)
+MAX_SUBOPTION = 64
+#: protocol answers a client may leave unread on top of the output buffer before it is dropped
+CONTROL_SLACK = 16384
+#: settings that arrive within this much of each other are applied as one change
+SETTLE_S = 0.2
+
+_SETTINGS: dict[str, Callable[[Any], bool]] = {
+    "baudrate": lambda v: isinstance(v, int) and 0 < v <= MAX_BAUD,
+    "bytesize": lambda v: v in (5, 6, 7, 8),
+    "parity": lambda v: v in PARITIES,  # mark and space are refused: the line model has neither
+    "stopbits": lambda v: v in (1, 1.5, 2),
+    "rtscts": lambda v: isinstance(v, bool),
+    "xonxoff": lambda v: isinstance(v, bool),
+}
+_FLOW = ("rtscts", "xonxoff")
+_LINES = ("dtr", "rts", "break_condition")
+
+
+class ComPortState:
+    """The serial-like object PortManager drives: what the client set. A refused value raises
+    ValueError, which PortManager answers with the value in force. Until the client sets a value,
+    the getters answer pyserial's defaults (9600 8N1, no flow control) to a client's query."""
+
+    cts = True
+    dsr = True
+    cd = True
+    ri = False
+
+    def __init__(self, changed: Callable[[str], None], purge_output: Callable[[], None]) -> None:
+        self._changed = changed
+        self._purge_output = purge_output
+        self.baudrate = 9600
+        self.bytesize = 8
+        self.parity = serial.PARITY_NONE
+        self.stopbits: float = 1
+        self.rtscts = False
+        self.xonxoff = False
+        self.dtr = self.rts = self.break_condition = False
+        self.seen: set[str] = set()  # set last: the defaults above are not the client's
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        check = _SETTINGS.get(name)
+        if check is not None and not check(value):
+            raise ValueError(f"unsupported {name} {value!r}")
+        super().__setattr__(name, value)
+        if "seen" in self.__dict__ and (check is not None or name in _LINES):
+            if check is not None:
+                self.seen.add(name)
+            self._changed(name)
+
+    def host_line(self) -> HostLine:
+        """The settings the client set; those it has not set are unseen (None)."""
+
+        def seen(name: str, value: Any) -> Any:
+            return value if name in self.seen else None
+
+        flow_seen = bool(self.seen & set(_FLOW))
+        return HostLine(
+            baud=seen("baudrate", self.baudrate),
+            data_bits=seen("bytesize", self.bytesize),
+            parity=seen("parity", PARITIES[self.parity]),
+            stop_bits=seen("stopbits", self.stopbits),
+            rtscts=self.rtscts if flow_seen else None,
+            xonxoff=self.xonxoff if flow_seen else None,
+        )
+
+    def reset_input_buffer(self) -> None:
+        """PURGE_DATA 1: drop device output the client has not been sent yet."""
+        self._purge_output()
+
+    def reset_output_buffer(self) -> None:
+        """PURGE_DATA 2: host bytes not yet at the device. None wait here: they are on the emulated
+        wire already, which a real port's purge cannot recall either."""
+
+
+class _Answers:
+    """PortManager's `connection`: its protocol answers go out unescaped, ahead of nothing."""
+
+    def __init__(self, send: Callable[[bytes], None]) -> None:
+        self.write = send
+
+
+class Rfc2217Transport(NetworkTransport):
+    kind = "rfc2217"
+    scheme = "rfc2217"
+
+    def __init__(self, bind: str, port: int, loop: asyncio.AbstractEventLoop | None = None) -> None:
+        super().__init__(bind, port, loop)
+        self._state: ComPortState | None = None
+        self._manager: rfc2217.PortManager | None = None
+        self._host = HostLine()
+        self._dirty = False  # a setting changed since the device was last told
+        self._flow_set = False  # ... and it included the flow control, a client's last setting
+        self._settle: asyncio.TimerHandle | None = None
+
+    def _connected(self) -> None:
+        self._host = HostLine()
+        self._dirty = self._flow_set = False
+        self._state = ComPortState(self._on_setting, self._purge_output)
+        # Its constructor sends the server's opening offers (WILL COM-PORT-OPTION ...).
+        # duck-typed as PortManager documents (its stubs ask for `Serial` objects)
+        self._manager = rfc2217.PortManager(cast(Any, self._state), cast(Any, _Answers(self._send_raw)))
+
+    def _disconnected(self) -> None:
+        if self._settle is not None:
+            self._settle.cancel()
+            self._settle = None
+        self._manager = self._state = None
+
+    def _on_setting(self, name: str) -> None:
+        assert self._state is not None
+        if name in _LINES:
+            log.info("%s: host set %s %s", self.path, name, "on" if getattr(self._state, name) else "off")
+            return
+        self._dirty = True
+        self._flow_set = self._flow_set or name in _FLOW
+
+    def _purge_output(self) -> None:
+        self._pending.clear()
+
+    def _decode(self, raw: bytes) -> bytes | None:
+        manager = self._manager
+        assert manager is not None
+        try:
+            data = b"".join(manager.filter(raw))
+        except (ValueError, KeyError, IndexError, TypeError, struct.error) as exc:
+            log.warning(
+                "%s: %s sent a malformed telnet option (%s); disconnecting", self.path, self._peer, exc
+            )
+            return None
+        if manager.suboption is not None and len(manager.suboption) > MAX_SUBOPTION:
+            log.warning(
+                "%s: %s sent a telnet subnegotiation over %d bytes; disconnecting",
+                self.path,
+                self._peer,
+                MAX_SUBOPTION,
+            )
+            return None
+        if len(self._pending) > OUTPUT_LIMIT + CONTROL_SLACK:
+            log.warning("%s: %s negotiates without reading the answers; disconnecting", self.path, self._peer)
+            return None
+        return data
+
+    def _received(self, raw: bytes) -> None:
+        data = self._decode(raw)
+        if data is None:
+            self._drop_connection(discarded=0)
+            return
+        if self._dirty:
+            if data or self._flow_set:
+                self._apply_settings()  # data the host sends is sent at its new settings
+            else:
+                if self._settle is not None:
+                    self._settle.cancel()
+                assert self._loop is not None
+                self._settle = self._loop.call_later(SETTLE_S, self._apply_settings)
+        if data:
+            assert self._sink is not None
+            self._sink.host_data(data)
+
+    def _apply_settings(self) -> None:
+        if self._settle is not None:
+            self._settle.cancel()
+            self._settle = None
+        self._dirty = self._flow_set = False
+        if self._state is None or self._sink is None:
+            return
+        host = self._state.host_line()
+        if host != self._host:
+            self._host = host
+            log.info("%s: host set %s", self.path, host.describe())
+            self._sink.host_line(host)
+
+    def _encode(self, data: bytes) -> bytes:
+        # what PortManager.escape() yields byte by byte, at C speed (pyserial's client does the same)
+        return data.replace(rfc2217.IAC, rfc2217.IAC_DOUBLED)
+
+    def _fit(self, data: bytes, room: int) -> int:
+        kept = max(min(len(data), room), 0)
+        escaped = data.count(rfc2217.IAC, 0, kept)
+        if kept + escaped > room:
+            kept = max(room - escaped, 0)  # a shorter prefix escapes no more bytes: it fits
+        return kept

@@ -1,0 +1,160 @@
+"""The pytest plugin (emulator/pytest_plugin.py) used the way a user would: a small host program and
+its tests, run by pytest in a subprocess, against the emulator and against a "real" port (an
+emulator port started here, with no control channel handed to the suite)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from emulator.launcher import start_daemon
+
+pytest_plugins = ["pytester"]
+
+HOST_PROGRAM = '''
+import time
+
+import serial
+
+
+class StageError(Exception):
+    pass
+
+
+def command(port: serial.Serial, text: str) -> str:
+    port.write(text.encode() + b"\\r")
+    reply = port.read_until(b"\\n").decode().strip()
+    if not reply or reply.startswith(":N"):
+        raise StageError(f"{text!r}: {reply or 'no reply'}")
+    return reply
+
+
+def move_x(port: serial.Serial, target: int) -> int:
+    """Move X to `target` (0.1 um), wait until it stops, return where it is."""
+    command(port, f"M X={target}")
+    while command(port, "/") == "B":
+        time.sleep(0.01)
+    position = int(command(port, "W X").split()[1])
+    if position != target:
+        raise StageError(f"X stopped at {position}, not {target}")
+    return position
+'''
+
+USER_TESTS = """
+import pytest
+import serial
+
+from host_stage import StageError, move_x
+
+
+def test_move_x_reads_back_the_target(stage_emu):
+    emu = stage_emu(profiles=["ms2000"])
+    with serial.Serial(emu.port("ms2000"), 9600, timeout=2) as port:
+        assert move_x(port, 1000) == 1000
+
+
+@pytest.mark.stage_emu_control
+def test_move_x_reports_a_closed_limit(stage_emu):
+    emu = stage_emu(profiles=["ms2000"])
+    emu.control.input("ms2000", "limit", axis="X", end="upper")
+    with serial.Serial(emu.port("ms2000"), 9600, timeout=2) as port, pytest.raises(StageError):
+        move_x(port, 5000)
+"""
+
+# each test notes its daemon's pid, so the outer test can check that none outlives the run
+LIFECYCLE_TESTS = """
+from pathlib import Path
+
+
+def note(kind, emu):
+    with open("pids.txt", "a") as pids:
+        pids.write(f"{kind} {emu.daemon.proc.pid}\\n")
+
+
+def test_function_daemon_is_fresh(stage_emu):
+    emu = stage_emu()
+    note("function", emu)
+    assert emu.control.get("ms2000", "axes")["X"]["machine_counts"] == 0
+
+
+def test_failing_test_still_stops_its_daemon(stage_emu):
+    note("function", stage_emu())
+    assert False, "deliberate failure"
+
+
+def test_rig_file_and_serve_options(stage_emu):
+    emu = stage_emu(rig="rig.yaml", log_traffic="traffic.jsonl")
+    note("function", emu)
+    assert sorted(emu.ports) == ["stage", "stage.aux"]
+    assert Path(emu.port("stage", "aux")).exists() and Path("traffic.jsonl").exists()
+
+
+def test_session_daemon_first(stage_emu_session):
+    emu = stage_emu_session(profiles=["ms2000"])
+    note("session", emu)
+    assert emu.control.get("ms2000", "busy") is False
+
+
+def test_session_daemon_second(stage_emu_session):
+    emu = stage_emu_session(profiles=["ms2000"])
+    note("session", emu)
+    assert Path(emu.port("ms2000")).exists()
+"""
+
+
+def _process_exists(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def test_user_suite_on_the_emulator_leaves_no_daemon(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(host_stage=HOST_PROGRAM, test_stage=USER_TESTS, test_lifecycle=LIFECYCLE_TESTS)
+    # a TTL REPORT build: its auxiliary port is served beside the main one
+    pytester.makefile(".yaml", rig='{"spec": 1, "devices": [{"name": "stage", "profile": "ms2000-ttlrep"}]}')
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider", timeout=60)
+    result.assert_outcomes(passed=6, failed=1)
+    result.stdout.fnmatch_lines(["*deliberate failure*"])
+    noted = [line.split() for line in (pytester.path / "pids.txt").read_text().splitlines()]
+    function_pids = [int(pid) for kind, pid in noted if kind == "function"]
+    session_pids = {int(pid) for kind, pid in noted if kind == "session"}
+    assert len(set(function_pids)) == 3 and len(session_pids) == 1
+    assert not [pid for pid in [*function_pids, *session_pids] if _process_exists(pid)]
+
+
+def test_real_port_switch_uses_the_port_and_skips_marked_tests(
+    pytester: pytest.Pytester, tmp_path: Path
+) -> None:
+    # an emulator port standing in for a real controller: the suite gets only its path
+    hardware = start_daemon(tmp_path / "hardware", ["--profile", "ms2000", "--timing", "fast"], 1)
+    try:
+        pytester.makepyfile(host_stage=HOST_PROGRAM, test_stage=USER_TESTS)
+        port = hardware.port("ms2000")
+        result = pytester.runpytest_subprocess(
+            "-p",
+            "no:cacheprovider",
+            "-rs",
+            "--stage-emu-port",
+            port,
+            "--stage-emu-device",
+            "ms2000",
+            timeout=60,
+        )
+        with hardware.control() as control:
+            moved_to = control.get("ms2000", "axes")["X"]["position"]
+    finally:
+        hardware.stop()
+    result.assert_outcomes(passed=1, skipped=1)
+    result.stdout.fnmatch_lines([f"*needs the emulator's control channel; --stage-emu-port {port}*"])
+    assert moved_to == "1000"  # the unmarked test drove the given port, not a daemon of its own
+
+
+def test_real_port_without_device_name_is_a_usage_error(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(test_nothing="def test_nothing(): pass")
+    result = pytester.runpytest_subprocess("--stage-emu-port", "/dev/null", timeout=60)
+    assert result.ret == pytest.ExitCode.USAGE_ERROR
+    result.stderr.fnmatch_lines(["*--stage-emu-port needs --stage-emu-device*"])

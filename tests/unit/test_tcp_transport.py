@@ -1,0 +1,178 @@
+"""The raw TCP transport on loopback: one host at a time, hang-ups of every kind, flow control both
+ways as on a PTY (emulator/transports/base.py), and a clean refusal of an address in use."""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import socket
+
+import pytest
+
+from emulator.device import HostLine
+from emulator.transports.pty import OUTPUT_LIMIT, PortError
+from emulator.transports.tcp import TcpTransport
+from tests.unit.test_pty_flow import Sink, until
+
+
+class HostSink(Sink):
+    """The PTY tests' sink, also keeping the host each attach reported."""
+
+    def __init__(self, space: int | None) -> None:
+        super().__init__(space)
+        self.hosts: list[HostLine | None] = []
+
+    def host_attached(self, host: HostLine | None) -> None:  # type: ignore[override]
+        self.hosts.append(host)
+        super().host_attached(host)  # type: ignore[arg-type]
+
+
+def serve(sink: Sink) -> tuple[TcpTransport, int]:
+    transport = TcpTransport("127.0.0.1", 0)
+    transport.open(sink)
+    port = int(transport.path.rsplit(":", 1)[1])
+    return transport, port
+
+
+async def connect(port: int) -> tuple[asyncio.StreamReader, asyncio.StreamWriter]:
+    return await asyncio.open_connection("127.0.0.1", port)
+
+
+def test_carries_bytes_both_ways_and_attaches_with_no_settings() -> None:
+    async def scenario() -> None:
+        sink = HostSink(None)
+        transport, port = serve(sink)
+        assert transport.path == f"socket://127.0.0.1:{port}" and port > 0
+        reader, writer = await connect(port)
+        writer.write(b"W X\r\xff")
+        await until(sink, lambda: bytes(sink.data) == b"W X\r\xff")
+        assert sink.hosts == [HostLine()]  # a raw socket shows no settings: the device's own apply
+        assert transport.write(b":A 0\r\n\xff") == 0
+        assert await asyncio.wait_for(reader.readexactly(7), 5) == b":A 0\r\n\xff"
+        writer.close()
+        await until(sink, lambda: sink.detached == 1)
+        transport.close()
+
+    asyncio.run(scenario())
+
+
+def test_a_second_client_is_refused_and_the_first_keeps_the_port(caplog: pytest.LogCaptureFixture) -> None:
+    async def scenario() -> None:
+        sink = HostSink(None)
+        transport, port = serve(sink)
+        _, first = await connect(port)
+        await until(sink, lambda: sink.attached == 1)
+        second_reader, second = await connect(port)
+        assert await asyncio.wait_for(second_reader.read(), 5) == b""  # closed by the server
+        first.write(b"still mine")
+        await until(sink, lambda: bytes(sink.data) == b"still mine")
+        assert (sink.attached, sink.detached) == (1, 0)
+        for writer in (first, second):
+            writer.close()
+        await until(sink, lambda: sink.detached == 1)
+        _, third = await connect(port)  # free again once the host hung up
+        await until(sink, lambda: sink.attached == 2)
+        third.close()
+        transport.close()
+
+    with caplog.at_level(logging.WARNING, "stage_emu.tcp"):
+        asyncio.run(scenario())
+    assert [r.message for r in caplog.records if "refused a connection" in r.message]
+
+
+def test_reset_is_a_hangup() -> None:
+    async def scenario() -> None:
+        sink = HostSink(None)
+        transport, port = serve(sink)
+        client = socket.create_connection(("127.0.0.1", port))
+        await until(sink, lambda: sink.attached == 1)
+        client.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, b"\x01\x00\x00\x00\x00\x00\x00\x00")
+        client.close()  # linger 0: an RST, not a FIN
+        await until(sink, lambda: sink.detached == 1)
+        transport.close()
+
+    asyncio.run(scenario())
+
+
+def test_reads_no_more_than_room_and_a_hangup_while_paused_discards_the_rest() -> None:
+    async def scenario() -> None:
+        sink = HostSink(10)
+        transport, port = serve(sink)
+        _, writer = await connect(port)
+        writer.write(b"x" * 100)
+        await until(sink, lambda: len(sink.data) == 10)
+        for _ in range(5):
+            await asyncio.sleep(0)  # let the loop run: nothing more may be read
+        assert len(sink.data) == 10
+        sink.space = 50
+        transport.resume_reading()
+        await until(sink, lambda: len(sink.data) == 60)
+        writer.close()  # seen while paused: the epoll watches for the hang-up without reading
+        await until(sink, lambda: sink.detached == 1)
+        assert (len(sink.data), sink.discarded, sink.overruns) == (60, 40, 0)
+        transport.close()
+
+    asyncio.run(scenario())
+
+
+def test_output_a_host_does_not_read_is_bounded_and_the_newest_is_dropped() -> None:
+    async def scenario() -> None:
+        sink = HostSink(None)
+        transport, port = serve(sink)
+        client = socket.create_connection(("127.0.0.1", port))
+        await until(sink, lambda: sink.attached == 1)
+        chunk = bytes(range(256)) * 16
+        dropped = 0
+        sent = 0
+        while dropped == 0:  # the kernel's buffers fill first, then ours
+            dropped = transport.write(chunk)
+            sent += len(chunk) - dropped
+            assert sent < 64 << 20
+        assert transport.write(b"lost") == 4
+        client.setblocking(False)
+        received = bytearray()
+        loop = asyncio.get_running_loop()
+        while len(received) < sent:  # the loop must run meanwhile: it flushes what the port holds
+            received += await asyncio.wait_for(loop.sock_recv(client, 65536), 5)
+        assert bytes(received) == (chunk * (sent // len(chunk) + 1))[:sent]
+        assert 0 < dropped <= len(chunk) and len(chunk) - dropped <= OUTPUT_LIMIT
+        client.close()
+        await until(sink, lambda: sink.detached == 1)
+        transport.close()
+
+    asyncio.run(scenario())
+
+
+def test_vanish_refuses_connections_and_reappear_listens_on_the_same_port() -> None:
+    async def scenario() -> None:
+        sink = HostSink(None)
+        transport, port = serve(sink)
+        _, writer = await connect(port)
+        await until(sink, lambda: sink.attached == 1)
+        transport.vanish()
+        assert sink.detached == 1
+        with pytest.raises(ConnectionRefusedError):
+            await connect(port)
+        transport.reappear()
+        assert transport.path.endswith(f":{port}")
+        _, again = await connect(port)
+        await until(sink, lambda: sink.attached == 2)
+        for w in (writer, again):
+            w.close()
+        transport.close()
+
+    asyncio.run(scenario())
+
+
+def test_an_address_in_use_is_one_clear_error() -> None:
+    async def scenario() -> None:
+        with socket.socket() as taken:
+            taken.bind(("127.0.0.1", 0))
+            taken.listen()
+            port = taken.getsockname()[1]
+            transport = TcpTransport("127.0.0.1", port)
+            with pytest.raises(PortError, match=rf"tcp port 127\.0\.0\.1:{port}: cannot listen: .*in use"):
+                transport.open(HostSink(None))
+            transport.close()  # nothing was left half-created
+
+    asyncio.run(scenario())
