@@ -63,8 +63,9 @@ class Case(Protocol):
     def setup(self, port: serial.Serial) -> None:
         """Once, on the emulator's port, before the visits."""
 
-    def sample(self, port: serial.Serial, index: int, log: Transcript) -> None:
-        """The exchanges of sample `index` (counted across visits), each reply checked and logged."""
+    def sample(self, port: serial.Serial, index: int, log: Transcript, times: list[float]) -> None:
+        """The exchanges of sample `index` (counted across visits), each reply checked and logged,
+        each timed from its request to its reply (µs, appended to `times`)."""
 
 
 @dataclass(frozen=True)
@@ -79,9 +80,8 @@ class Fixed:
     def setup(self, port: serial.Serial) -> None:
         pass
 
-    def sample(self, port: serial.Serial, index: int, log: Transcript) -> None:
-        port.write(self.request)
-        reply = read_reply(port, len(self.reply), self.name)
+    def sample(self, port: serial.Serial, index: int, log: Transcript, times: list[float]) -> None:
+        reply = exchange(port, self.request, len(self.reply), self.name, times)
         if reply != self.reply:
             raise BenchError(f"{self.name}: answered {reply!r}, expected {self.reply!r}")
         log.append((len(self.request), reply))
@@ -89,8 +89,9 @@ class Fixed:
 
 @dataclass(frozen=True)
 class MoveAndPoll:
-    """`M X=<index + 1>` then `/` until `N`, one sample per whole exchange. Targets rise by 0.1 µm
-    (5 counts or 4), so no move is a backwards one with its anti-backlash detour (MS-57)."""
+    """`M X=<index + 1>` then `/` until `N`; each exchange is timed on its own, since the move's own
+    duration (which the polls wait out) is modelling, not a round trip. Targets rise by 0.1 µm (5
+    counts or 4), so no move is a backwards one with its anti-backlash detour (MS-57)."""
 
     name: str = "ms2000 M X + / to N"
     device: str = "ms2000"
@@ -99,22 +100,29 @@ class MoveAndPoll:
         # ramp time AC 1 ms: a 5-count step then lands in 0.3 ms, within a few polls
         ask(port, b"AC X=1\r", b":A\r\n")
 
-    def sample(self, port: serial.Serial, index: int, log: Transcript) -> None:
+    def sample(self, port: serial.Serial, index: int, log: Transcript, times: list[float]) -> None:
         request = f"M X={index + 1}\r".encode()
-        port.write(request)
-        reply = read_reply(port, 4, "M")
+        reply = exchange(port, request, 4, "M", times)
         if reply != b":A\r\n":
             raise BenchError(f"{request!r} answered {reply!r}")
         log.append((len(request), reply))
         for _ in range(MAX_POLLS):
-            port.write(b"/\r")
-            reply = read_reply(port, 3, "/")
+            reply = exchange(port, b"/\r", 3, "/", times)
             log.append((2, reply))
             if reply == b"N\r\n":
                 return
             if reply != b"B\r\n":
                 raise BenchError(f"/ answered {reply!r} during a move")
         raise BenchError(f"{request!r}: still busy after {MAX_POLLS} polls")
+
+
+def exchange(port: serial.Serial, request: bytes, length: int, what: str, times: list[float]) -> bytes:
+    """Write `request`, read a reply of `length` bytes; the time between, in µs, goes to `times`."""
+    start = time.perf_counter()
+    port.write(request)
+    reply = read_reply(port, length, what)
+    times.append((time.perf_counter() - start) * 1e6)
+    return reply
 
 
 W_X_Y = Fixed("ms2000 W X Y", "ms2000", b"W X Y\r", b":A 0 0\r\n")
@@ -212,16 +220,15 @@ def measure(case: Case, daemon: RunningDaemon, visits: int, samples: int) -> Res
 
 
 def _visit(path: str, case: Case, first: int, samples: int) -> tuple[list[float], Transcript]:
-    """Warm-up then `samples` timed samples on a fresh port; times in µs."""
+    """Warm-up then `samples` samples on a fresh port; the round-trip time of each of their
+    exchanges in µs, and the transcript of all."""
     log: Transcript = []
-    times = []
+    times: list[float] = []
     with open_host(path) as port:
         for index in range(first, first + WARMUP):
-            case.sample(port, index, log)
+            case.sample(port, index, log, [])
         for index in range(first + WARMUP, first + WARMUP + samples):
-            start = time.perf_counter()
-            case.sample(port, index, log)
-            times.append((time.perf_counter() - start) * 1e6)
+            case.sample(port, index, log, times)
     return times, log
 
 
