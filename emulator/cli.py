@@ -15,6 +15,7 @@ from emulator import registry
 from emulator.cli_gcode import gcode
 from emulator.cli_plot import plot
 from emulator.cli_trace import trace
+from emulator.cli_view import view
 from emulator.clock import MAX_SCALE, MAX_STEP, MIN_SCALE, check_scale, check_step
 from emulator.control import ControlClient, ControlFailure, RequestError
 from emulator.daemon import Daemon, DaemonOptions
@@ -75,6 +76,7 @@ def main() -> None:
 main.add_command(gcode)
 main.add_command(plot)
 main.add_command(trace)
+main.add_command(view)
 
 
 @main.command()

@@ -1,0 +1,121 @@
+"""`stage-emu view`: rows from `list`, snapshots and events (emulator/view.py), their rendering, and
+the command's one-line failure without a daemon."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from click.testing import CliRunner
+from rich.console import Console
+
+from emulator.cli import main
+from emulator.cli_view import EVENTS_NOTE, render
+from emulator.view import EVENTS_KEPT, ViewState, event_line
+
+LISTING: list[dict[str, Any]] = [
+    {
+        "device": "ms2000",
+        "family": "ms2000",
+        "profile": "ms2000",
+        "ports": [
+            {
+                "port": "main",
+                "path": "/run/x/ms2000",
+                "attached": True,
+                "host": "9600 8N1 rtscts",
+                "timing": "realistic",
+                "faults": {"hung": False, "drop_replies": 2},
+                "stats": {"output_dropped": 0, "input_discarded": 3},
+            }
+        ],
+    },
+    {"device": "mp285", "family": "mp285", "profile": "mp285", "ports": []},
+]
+MS2000_SNAPSHOT: dict[str, Any] = {
+    "axes": {"X": {"user_mm": 1.5}, "Y": {"user_mm": -0.25}},
+    "busy": True,
+    "ttl_out0": 1,
+    "ttl_out0_pwm": 0.0,
+    "lcd": ["X1.500 Y-0.250", "RB 0/0"],
+}
+MP285_SNAPSHOT: dict[str, Any] = {
+    "state": "MOVING",
+    "position": {"um": {"X": 10.0, "Y": 0.0, "Z": -2.5}},
+    "display": ["X:+10.00", ""],
+}
+
+
+def loaded() -> ViewState:
+    state = ViewState()
+    state.apply_list(LISTING)
+    state.apply_snapshot("ms2000", MS2000_SNAPSHOT)
+    state.apply_snapshot("mp285", MP285_SNAPSHOT)
+    return state
+
+
+def test_rows_from_list_and_snapshots() -> None:
+    state = loaded()
+    ms, mp = state.devices["ms2000"], state.devices["mp285"]
+    assert ms.positions == "X=1.5000mm Y=-0.2500mm"
+    assert (ms.busy, ms.ttl_out0, ms.lcd) == ("busy", "high", ["X1.500 Y-0.250", "RB 0/0"])
+    (port,) = ms.ports
+    assert (port.attached, port.host, port.timing) == ("yes", "9600 8N1 rtscts", "realistic")
+    assert port.stats == "input_discarded=3 faults: drop_replies"
+    assert mp.positions == "X=10.00µm Y=0.00µm Z=-2.50µm"
+    assert (mp.busy, mp.ttl_out0, mp.lcd) == ("moving", "-", ["X:+10.00", ""])
+
+
+def test_a_device_no_longer_listed_goes_away() -> None:
+    state = loaded()
+    state.apply_list(LISTING[:1])
+    assert list(state.devices) == ["ms2000"]
+
+
+def test_events_mark_their_device_stale_and_are_kept() -> None:
+    state = loaded()
+    assert state.apply_event({"ev": "ttl_out0", "level": 0, "t": 1.25, "device": "ms2000"}) == "ms2000"
+    assert list(state.devices["ms2000"].events) == ["t=1.250 ttl_out0 level=0"]
+    assert state.apply_event({"ev": "move", "path": {}, "device": "ms2000"}) == "ms2000"
+    assert len(state.devices["ms2000"].events) == 1  # per-leg records are not listed
+    assert state.apply_event({"ev": "orphan"}) is None
+    for i in range(EVENTS_KEPT + 3):
+        state.apply_event({"ev": "move_complete", "n": i, "device": "mp285"})
+    assert len(state.devices["mp285"].events) == EVENTS_KEPT
+    state.apply_event({"ev": "dropped", "count": 4, "device": "mp285"})
+    assert state.dropped == 4
+
+
+def test_event_line_without_time() -> None:
+    assert event_line({"ev": "button", "name": "zero", "device": "d"}) == 'button name="zero"'
+
+
+def test_rendering() -> None:
+    state = loaded()
+    state.apply_event({"ev": "move_complete", "t": 2.0, "device": "ms2000"})
+    console = Console(record=True, width=120)
+    console.print(render(state))
+    text = console.export_text()
+    for expected in (
+        "ms2000 ms2000 (ms2000)",
+        "X=1.5000mm",
+        "busy",
+        "RB 0/0",
+        "high",
+        "9600 8N1 rtscts",
+        "/run/x/ms2000",
+        "t=2.000 move_complete",
+        "mp285 mp285 (mp285)",
+        "moving",
+        "(none yet)",
+    ):
+        assert expected in text, expected
+    assert "these are its last events" in EVENTS_NOTE
+    assert "last events, not" in text.replace("\n", " ")
+
+
+def test_no_daemon_is_one_line_and_exit_1(tmp_path: Path) -> None:
+    result = CliRunner().invoke(main, ["view", "--control", str(tmp_path / "none.sock")])
+    assert result.exit_code == 1
+    assert result.output.count("\n") == 1
+    assert "cannot reach the daemon" in result.output
