@@ -20,6 +20,7 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
+from emulator.trace import parse_record
 from emulator.trafficlog import MOVE
 
 
@@ -158,21 +159,14 @@ def read_records(path: Path) -> list[dict[str, Any]]:
             if number == len(lines) and not text.endswith("\n"):
                 break
             raise LogError(f"{path}:{number}: not a traffic log (not a JSON record)") from None
-        if not _is_record(record):
-            raise LogError(f"{path}:{number}: not a traffic log record (no device, dir and t)")
+        try:
+            parse_record(line)  # the one check of a record's form, shared with `stage-emu trace`
+        except ValueError as exc:
+            raise LogError(f"{path}:{number}: not a traffic log record ({exc})") from None
         records.append(record)
     if not records:
         raise LogError(f"{path}: empty, no traffic log records")
     return records
-
-
-def _is_record(record: Any) -> bool:
-    return (
-        isinstance(record, dict)
-        and isinstance(record.get("device"), str)
-        and isinstance(record.get("dir"), str)
-        and _number(record.get("t"))
-    )
 
 
 def _number(value: Any) -> bool:

@@ -34,7 +34,7 @@ def session_log(path: Path) -> Path:
         {"t": 2.0, "device": "stage", "dir": "ev", "ev": "scan_pixels", "line": 1, "count": 7},
         {"t": 2.0, "device": "stage", "dir": "ev", "ev": "array_arrival", "i": 1, "j": 2},
     ]
-    path.write_text("".join(json.dumps(r) + "\n" for r in records))
+    path.write_text("".join(json.dumps({"wall": 0.0, **r}) + "\n" for r in records))
     return path
 
 
@@ -77,7 +77,10 @@ def test_missing_matplotlib_is_one_line(tmp_path: Path, monkeypatch: pytest.Monk
 def test_what_it_cannot_do_is_one_line_and_exit_1(tmp_path: Path, args: list[str], message: str) -> None:
     session_log(tmp_path / "t.jsonl")
     (tmp_path / "garbage.jsonl").write_text("not json\n")
-    (tmp_path / "quiet.jsonl").write_text(json.dumps({"t": 0.0, "device": "stage", "dir": "rx"}) + "\n")
+    (tmp_path / "quiet.jsonl").write_text(
+        json.dumps({"t": 0.0, "wall": 0.0, "device": "stage", "dir": "rx", "port": "main", "hex": "56 0d"})
+        + "\n"
+    )
     result = run(*(arg.format(tmp=tmp_path) for arg in args))
     assert result.exit_code == 1
     assert result.stderr.startswith("stage-emu: " + message.format(tmp=tmp_path))

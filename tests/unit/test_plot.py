@@ -94,15 +94,24 @@ def test_no_laser_edges_means_no_laser_styling() -> None:
 # ---- bad logs -----------------------------------------------------------------------------------
 
 
+#: the fields every record of a real log has besides its own (emulator/trafficlog.py)
+RX = {"wall": 0.0, "device": "stage", "dir": "rx", "port": "main"}
+EV = {"wall": 0.0, "device": "s", "dir": "ev"}
+
+
 @pytest.mark.parametrize(
     ("content", "message"),
     [
         ("", "empty, no traffic log records"),
         ("hello\nworld\n", ":1: not a traffic log (not a JSON record)"),
-        ('{"a": 1}\n', ":1: not a traffic log record (no device, dir and t)"),
-        ('{"t": 1, "device": "stage", "dir": "rx", "hex": ""}\n', "no move records: was it written by"),
+        ('{"a": 1}\n', ":1: not a traffic log record (no t, wall and device)"),
         (
-            json.dumps({"t": 1, "device": "s", "dir": "ev", "ev": "move", "path": {"X": []}}) + "\n",
+            '{"t": 1, "device": "stage", "dir": "rx"}\n',
+            ":1: not a traffic log record (no t, wall and device)",
+        ),
+        (json.dumps({**RX, "t": 1, "hex": ""}) + "\n", "no move records: was it written by"),
+        (
+            json.dumps({**EV, "t": 1, "ev": "move", "path": {"X": []}}) + "\n",
             "a malformed s event record (axis X: no finite knots)",
         ),
     ],
@@ -131,7 +140,7 @@ def test_a_last_line_cut_short_is_left_out(tmp_path: Path) -> None:
 
 def test_devices_are_chosen_by_name_or_by_being_the_only_one_that_moved(tmp_path: Path) -> None:
     other = {**move(1.0, "X", (1.0, 7.0)), "device": "other"}
-    quiet = {"t": 1.0, "device": "quiet", "dir": "rx", "hex": ""}
+    quiet = {**RX, "t": 1.0, "device": "quiet", "hex": ""}
     log = write_log(tmp_path / "t.jsonl", [move(1.0, "X", (1.0, 5.0)), quiet])
     assert read_session(log).device == "stage"
     with pytest.raises(LogError, match=r"no move records of device 'quiet'"):
