@@ -29,6 +29,8 @@ PTS_DIR = "/dev/pts/"
 #: AF_UNIX `sun_path` holds 108 bytes including the terminating NUL
 MAX_SOCKET_PATH = 107
 LINK, SOCKET, READY = "link", "socket", "ready"
+#: the in-process URL (`state=DIR`) also runs on Windows, where a few POSIX idioms here are harmful
+POSIX = os.name == "posix"
 
 
 class SetupError(Exception):
@@ -89,7 +91,10 @@ def check_socket_path(path: Path, option: str) -> None:
 def pid_alive(pid: int) -> bool:
     """Whether `pid` may still be a process. Only "no such process" (or a number no process can
     have) counts as gone: another user's process, or any other refusal, is taken as alive, so what
-    it owns is left alone."""
+    it owns is left alone. Off POSIX every pid counts as alive: on Windows `os.kill(pid, 0)` is no
+    probe but TerminateProcess, which would end whatever process now has that number."""
+    if not POSIX:
+        return True
     try:
         os.kill(pid, 0)
     except (ProcessLookupError, OverflowError):
@@ -131,7 +136,7 @@ def write_private_atomic(path: Path, text: str, *, sync_dir: bool = False) -> tu
         with contextlib.suppress(FileNotFoundError):
             os.unlink(tmp)
         raise
-    if sync_dir:
+    if sync_dir and POSIX:  # Windows opens no directory as a file; NTFS journals renames
         dir_fd = os.open(path.parent, os.O_RDONLY)
         try:
             os.fsync(dir_fd)

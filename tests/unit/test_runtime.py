@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from emulator import runtime
 from emulator.clock import ScaledClock
 from emulator.control import ControlServer
 from emulator.runtime import (
@@ -25,6 +26,7 @@ from emulator.runtime import (
     check_output_path,
     check_ready_file,
     check_socket_path,
+    pid_alive,
     private_dir,
     remove_ready_file,
     runtime_dir,
@@ -227,3 +229,26 @@ def test_owner_record_lists_created_paths_and_goes_at_release(tmp_path: Path) ->
     assert (tmp_path / "owners").stat().st_mode & 0o777 == 0o700
     ownership.release()
     assert not lock.exists()
+
+
+def test_off_posix_no_process_is_signalled_and_no_directory_opened(tmp_path: Path, monkeypatch) -> None:
+    """The in-process URL's `state=DIR` runs on Windows, where `os.kill(pid, 0)` terminates the
+    process and a directory cannot be opened as a file: neither may happen there."""
+
+    def forbidden(*args: object) -> None:
+        raise AssertionError(f"called off POSIX with {args}")
+
+    assert not pid_alive(2**22 + 12345)  # POSIX: a pid no process has is gone
+    monkeypatch.setattr(runtime, "POSIX", False)
+    monkeypatch.setattr(os, "kill", forbidden)
+    assert pid_alive(2**22 + 12345)  # taken as alive: a stale temporary file is left, no process ended
+    real_open = os.open
+
+    def no_directories(path: str | Path, flags: int, *args: int) -> int:
+        if Path(path).is_dir():
+            forbidden(path)
+        return real_open(path, flags, *args)
+
+    monkeypatch.setattr(os, "open", no_directories)
+    write_private_atomic(tmp_path / "positions.json", "{}", sync_dir=True)
+    assert (tmp_path / "positions.json").read_text() == "{}"
