@@ -1,15 +1,17 @@
 """`stage-emu view [--control SOCKET]`: a live screen of a running daemon's devices (rich).
 
-It redraws when the daemon pushes an event: each event marks its device stale and that device's
-snapshot is read again (one request; events arriving together share one read). Settings that push
-no event (a host attaching, line settings, port statistics) show up through a slow full refresh
-every FALLBACK_S seconds. No daemon, or a daemon that goes away: one line, exit 1. Ctrl-C: exit 0.
+It subscribes to each device's events and traffic records, and redraws when the daemon pushes one:
+each marks its device stale and that device's snapshot is read again (one request; what arrives
+within COALESCE_S shares one read and one redraw). Settings that push nothing (a host attaching,
+line settings, port statistics) show up through a slow full refresh every FALLBACK_S seconds. No
+daemon, or a daemon that goes away: one line, exit 1. Ctrl-C: exit 0.
 """
 
 from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Iterable
 from pathlib import Path
 from typing import NoReturn
 
@@ -22,15 +24,17 @@ from rich.text import Text
 
 from emulator.control import ControlClient, ControlFailure
 from emulator.runtime import SetupError, runtime_dir
-from emulator.view import DeviceView, ViewState
+from emulator.trace import REPLY_WAIT_S
+from emulator.view import DeviceView, ExchangeRow, ViewState
 
 #: seconds between full refreshes (list + every snapshot), for changes that push no event
 FALLBACK_S = 2.0
-#: after an event, how long to keep collecting the ones right behind it before reading snapshots
+#: after an event, how long to keep collecting the ones behind it before reading snapshots
 COALESCE_S = 0.05
 #: at most this many events are taken together before the screen is redrawn
 COALESCE_MAX = 200
-EVENTS_NOTE = "the daemon's control channel names no traffic log, so these are its last events, not exchanges"
+#: how a flag is drawn (a flag not listed: bold)
+FLAG_STYLES = {"STRAY": "yellow", "UNSOLICITED": "cyan"}
 
 
 def _fail(message: str) -> NoReturn:
@@ -39,34 +43,35 @@ def _fail(message: str) -> NoReturn:
 
 
 def full_refresh(client: ControlClient, state: ViewState, subscribed: set[str]) -> None:
-    """Read `list` and every device's snapshot; subscribe to devices not yet subscribed."""
+    """Read `list` and every device's snapshot; subscribe to the events and traffic records of
+    devices not yet subscribed."""
     state.apply_list(client.list())
     for name in state.devices:
         if name not in subscribed:
             client.subscribe(name)
+            client.subscribe(name, traffic=True)
             subscribed.add(name)
         state.apply_snapshot(name, client.snapshot(name))
 
 
 def update(client: ControlClient, state: ViewState, timeout: float | None) -> set[str]:
-    """Wait up to `timeout` s for a pushed event; apply it and those right behind it, then read
-    the snapshot of each device they concern. Returns those devices (empty: nothing came)."""
+    """Wait up to `timeout` s for a pushed event; apply it and those behind it for COALESCE_S more
+    (at most COALESCE_MAX), then read the snapshot of each device they concern, and show requests
+    the daemon has not answered for a while. Returns those devices (empty: nothing came)."""
     stale: set[str] = set()
+    event = next(client.events(timeout=timeout), None)
+    deadline = time.monotonic() + COALESCE_S
     taken = 0
-    for event in client.events(timeout=timeout):
-        taken += 1
+    while event is not None:
         device = state.apply_event(event)
         if device is not None:
             stale.add(device)
-        break
-    if taken:
-        for event in client.events(timeout=COALESCE_S):
-            device = state.apply_event(event)
-            if device is not None:
-                stale.add(device)
-            taken += 1
-            if taken >= COALESCE_MAX:
-                break
+        taken += 1
+        left = deadline - time.monotonic()
+        if taken >= COALESCE_MAX or left <= 0:
+            break
+        event = next(client.events(timeout=left), None)
+    state.expire(time.time() - REPLY_WAIT_S)
     for device in sorted(stale):
         if device in state.devices:
             state.apply_snapshot(device, client.snapshot(device))
@@ -85,17 +90,45 @@ def render_device(view: DeviceView) -> Panel:
     for row in view.ports:
         ports.add_row(row.port, row.path, row.attached, row.host, row.timing, row.stats)
     events = "\n".join(view.events) if view.events else "(none yet)"
-    body = Group(facts, ports, Text("last events", style="bold"), Text(events))
+    body = Group(
+        facts,
+        ports,
+        Text("last exchanges", style="bold"),
+        render_exchanges(view.exchanges),
+        Text("last events", style="bold"),
+        Text(events),
+    )
     return Panel(body, title=f"[b]{view.name}[/b] {view.family} ({view.profile})", title_align="left")
+
+
+def render_exchanges(rows: Iterable[ExchangeRow]) -> RenderableType:
+    """One line per exchange: device time, port, flag, `request -> reply`, latency."""
+    table = Table(box=None, padding=(0, 1), show_header=False, expand=True)
+    table.add_column(justify="right", no_wrap=True)
+    table.add_column(no_wrap=True)
+    table.add_column(no_wrap=True)
+    table.add_column(ratio=1, no_wrap=True, overflow="ellipsis")
+    table.add_column(justify="right", no_wrap=True)
+    for row in rows:
+        flag = Text(row.flag, style=FLAG_STYLES.get(row.flag, "bold red"))
+        said = " -> ".join(part for part in (row.request, row.reply) if part)
+        said = said if row.request else f"-> {said}"
+        latency = "" if row.latency_ms is None else f"{row.latency_ms:.1f} ms"
+        table.add_row(f"{row.t:.3f}", row.port, flag, said, latency)
+    return table if table.row_count else Text("(none yet)")
 
 
 def render(state: ViewState) -> RenderableType:
     panels: list[RenderableType] = [render_device(view) for view in state.devices.values()]
     if not panels:
         panels.append(Text("the daemon serves no devices"))
-    note = f"Note: {EVENTS_NOTE}. Ctrl-C exits."
+    if state.traffic_log:
+        note = f"Traffic log: {state.traffic_log} (`stage-emu trace --follow` reads all of it)."
+    else:
+        note = "The daemon keeps no traffic log; its devices explain their traffic while the view watches."
+    note += " Ctrl-C exits."
     if state.dropped:
-        note += f" The daemon dropped {state.dropped} events while the view fell behind."
+        note += f" The daemon dropped {state.dropped} events or records while the view fell behind."
     panels.append(Text(note, style="dim"))
     return Group(*panels)
 
@@ -115,8 +148,8 @@ def _connect(control: Path | None) -> ControlClient:
 @click.option("--control", type=click.Path(dir_okay=False, path_type=Path), help="Control socket path.")
 def view(control: Path | None) -> None:
     """Live view of a running daemon: each device's positions, busy state, LCD, TTL output, its ports'
-    hosts and line settings, and its last events. Redraws on the daemon's events, and fully every
-    2 s for changes that push none. Ctrl-C exits."""
+    hosts and line settings, its last exchanges decoded, and its last events. Redraws on the
+    daemon's events and traffic, and fully every 2 s for changes that push none. Ctrl-C exits."""
     client = _connect(control)
     state = ViewState()
     subscribed: set[str] = set()

@@ -13,6 +13,11 @@ One request per line, one reply per request, replies in order:
     {"id": 8, "op": "clock", "scale": 10}     also {"op": "pause"}, {"op": "resume"},
                                               {"op": "step", "seconds": 0.5}
     {"id": 9, "device": "stage", "op": "subscribe"}                -> then {"ev": ..., "device": ...} lines
+    {"id": 10, "device": "stage", "op": "subscribe", "traffic": true}  -> then {"ev": "traffic", ...}
+                  lines, its traffic log records (rx/tx, trafficlog.py); "unsubscribe" undoes either
+
+A model formats its traffic only while a traffic log is kept or a connection takes its records. Pushed
+lines are bounded per connection (SUBSCRIBER_BACKLOG): a slow reader loses lines, never stalls a device.
 
 Replies: `{"id": .., "ok": true, "result": ..}` or `{"id": .., "ok": false, "error": "sentence"}`.
 The device vocabulary (`in`, `get`, `ev` names) belongs to each device model.
@@ -28,7 +33,8 @@ import logging
 import os
 import socket
 import stat
-from collections.abc import Iterator
+from collections import deque
+from collections.abc import Collection, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -52,12 +58,17 @@ class RequestError(Exception):
 
 
 class ControlServer:
-    def __init__(self, path: Path, runners: dict[str, DeviceRunner], clock: ScaledClock) -> None:
+    def __init__(
+        self, path: Path, runners: dict[str, DeviceRunner], clock: ScaledClock, traffic: Path | None = None
+    ) -> None:
         self.path = path
         self._runners = runners
         self._clock = clock
+        self._traffic_log = traffic  # named in `list`
         self._server: asyncio.AbstractServer | None = None
+        #: per device, the connections subscribed to its events, and those to its traffic records
         self._subscribers: dict[str, set[asyncio.StreamWriter]] = {}
+        self._watchers: dict[str, set[asyncio.StreamWriter]] = {}
         self._clients: set[asyncio.StreamWriter] = set()
         #: events dropped per subscriber connection since it last kept up
         self._dropped: dict[asyncio.StreamWriter, int] = {}
@@ -95,13 +106,17 @@ class ControlServer:
             self._bound = None
 
     def publish(self, device: str, event: dict[str, Any]) -> None:
-        """Push a device event to every connection subscribed to that device. A subscriber that does
-        not read loses events past SUBSCRIBER_BACKLOG; once it reads again it first gets
-        `{"ev": "dropped", "count": N}` for what it missed."""
-        line = (json.dumps({**event, "device": device}) + "\n").encode()
-        for writer in list(self._subscribers.get(device, ())):
+        """Push a device event to every connection subscribed to that device's events."""
+        self._push(device, self._subscribers.get(device, ()), {**event, "device": device})
+
+    def _push(self, device: str, writers: Collection[asyncio.StreamWriter], message: dict[str, Any]) -> None:
+        """A subscriber that does not read loses lines past SUBSCRIBER_BACKLOG; once it reads again it
+        first gets `{"ev": "dropped", "count": N}` for what it missed. `_serve` forgets closed ones."""
+        if not writers:  # the common case: nobody listens, so nothing is encoded
+            return
+        line = (json.dumps(message) + "\n").encode()
+        for writer in writers:
             if writer.is_closing():
-                self._subscribers[device].discard(writer)
                 continue
             if writer.transport.get_write_buffer_size() > SUBSCRIBER_BACKLOG:
                 dropped = self._dropped.get(writer, 0)
@@ -140,6 +155,9 @@ class ControlServer:
         finally:
             for subscribers in self._subscribers.values():
                 subscribers.discard(writer)
+            for name, watchers in self._watchers.items():
+                if writer in watchers:
+                    self._watch(self._runners[name], writer, False)
             self._dropped.pop(writer, None)
             self._clients.discard(writer)
             writer.close()
@@ -191,17 +209,36 @@ class ControlServer:
         if op in ("subscribe", "unsubscribe"):
             if writer is None:
                 raise RequestError(f"{op} needs a connection")
-            subscribers = self._subscribers.setdefault(runner.name, set())
-            (subscribers.add if op == "subscribe" else subscribers.discard)(writer)
+            traffic = request.get("traffic", False)
+            if not isinstance(traffic, bool):
+                raise RequestError(f"'traffic' must be true or false, got {traffic!r}")
+            if traffic:
+                self._watch(runner, writer, op == "subscribe")
+            else:
+                subscribers = self._subscribers.setdefault(runner.name, set())
+                (subscribers.add if op == "subscribe" else subscribers.discard)(writer)
             return True
         raise RequestError(
             f"unknown device request {op!r}; use 'in', 'get' or an op: "
             "snapshot, names, reset, power_cycle, fault, subscribe, unsubscribe"
         )
 
+    def _watch(self, runner: DeviceRunner, writer: asyncio.StreamWriter, on: bool) -> None:
+        """Add or remove a subscriber to the runner's traffic records; the runner hands them over
+        (and its model explains) only while the device has one."""
+        name = runner.name
+        watchers = self._watchers.setdefault(name, set())
+        had = bool(watchers)
+        (watchers.add if on else watchers.discard)(writer)
+        if bool(watchers) != had:
+            runner.watch_traffic(
+                (lambda entry: self._push(name, watchers, {"ev": "traffic", **entry})) if watchers else None
+            )
+
     def _global(self, op: Any, request: dict[str, Any]) -> Any:
         if op == "list":
-            return [_describe(runner) for runner in self._runners.values()]
+            log = None if self._traffic_log is None else str(self._traffic_log)
+            return [{**_describe(runner), "traffic_log": log} for runner in self._runners.values()]
         if op == "clock":
             if "scale" in request:
                 self._clock.set_scale(check_scale(request["scale"]))
@@ -321,7 +358,7 @@ class ControlClient:
         self._sock.connect(str(path))
         self._buffer = b""
         self._next_id = 0
-        self._events: builtins.list[dict[str, Any]] = []
+        self._events: deque[dict[str, Any]] = deque()
 
     def close(self) -> None:
         self._sock.close()
@@ -360,7 +397,7 @@ class ControlClient:
         """Pushed events (after `subscribe`), buffered ones first; stops at `timeout` of silence."""
         while True:
             while self._events:
-                yield self._events.pop(0)
+                yield self._events.popleft()
             previous = self._sock.gettimeout()
             self._sock.settimeout(timeout)
             try:
@@ -398,8 +435,9 @@ class ControlClient:
     def fault(self, device: str, fault: str, port: str = "main", **params: Any) -> Any:
         return self.request({"device": device, "op": "fault", "port": port, "fault": fault, **params})
 
-    def subscribe(self, device: str) -> Any:
-        return self.request({"device": device, "op": "subscribe"})
+    def subscribe(self, device: str, traffic: bool = False) -> Any:
+        """Pushed events of `device` (see `events`); with `traffic`, its traffic records instead."""
+        return self.request({"device": device, "op": "subscribe", "traffic": traffic})
 
     def clock(self, scale: float | None = None) -> Any:
         return self.request({"op": "clock"} if scale is None else {"op": "clock", "scale": scale})

@@ -149,7 +149,8 @@ class Daemon:
             if self.options.control_path
             else run_dir / "control.sock"
         )
-        self.control = ControlServer(control_path, self.runners, self.clock)
+        traffic_path = None if self._traffic is None else self._traffic.path
+        self.control = ControlServer(control_path, self.runners, self.clock, traffic_path)
         self._ownership.record(SOCKET, control_path)
         await self.control.start()
         ready: list[dict[str, Any]] = []

@@ -23,9 +23,10 @@ Model obligations:
 - `Emission.due` is the device instant at which the bytes are handed to the device's transmitter;
   the line layer (emulator/line.py) then paces them at the character rate.
 - Bad input never raises: it produces whatever the real device does with it.
-- While `explain` is set (the host keeps a traffic log) it says what it did with the bytes: an
-  `RxNote` per unit of input (a command, a garbled character, bytes lost or stray) and a summary on
-  each `Emission`. While it is clear nothing is formatted: the hot path pays one attribute test.
+- While `explain` is set (the host keeps a traffic log, or someone watches the traffic) it says what
+  it did with the bytes: an `RxNote` per unit of input (a command, a garbled character, bytes lost or
+  stray) and a summary on each `Emission`. While it is clear nothing is formatted: the hot path
+  pays one attribute test.
 """
 
 from __future__ import annotations

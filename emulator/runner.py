@@ -1,9 +1,10 @@
 """Hosts one sans-I/O device model: feeds it paced host bytes, runs its timers on the clock, paces its
 output onto its ports, applies injected faults, logs traffic and line mismatches.
 
-With a traffic log the runner sets the model's `explain` and logs what the model reports: its notes
-on received bytes, each emission's summary when its last byte leaves the port, and its pushed events, `move`
-records and the other `LOG_ONLY` ones among them (a model builds them only while explaining; they are not
+With a traffic log, or a control-channel traffic subscriber (`watch_traffic`), the runner sets the
+model's `explain` and records what the model reports: its notes on received bytes, each emission's
+summary when its last byte leaves the port, and (for the log) its pushed events, `move` records and
+the other `LOG_ONLY` ones among them (a model builds them only while explaining; they are not
 published). It adds what it drops itself (emulator/trafficlog.py has the record format).
 
 The runner is transport-agnostic and clock-agnostic. With a real or scaled clock and an asyncio loop
@@ -111,6 +112,19 @@ class DeviceRunner:
         ch.transport = transport
         ch.timing = timing
         transport.open(_ChannelSink(self, ch))
+
+    def watch_traffic(self, sink: Callable[[dict[str, Any]], None] | None) -> None:
+        """Hand each traffic record (as the log writes it) to `sink` as well; None stops that. The
+        model explains while a log or a sink takes the records, and formats nothing otherwise."""
+        traffic = self._traffic
+        if traffic is None and sink is not None:
+            on_wire = {ch.name: len(ch.to_host) for ch in self.channels.values()}
+            traffic = self._traffic = DeviceTraffic(None, self.device.name, on_wire)
+        if traffic is not None:
+            traffic.sink = sink
+            if sink is None and not traffic.logs:
+                self._traffic = None
+        self.device.explain = self._traffic is not None
 
     def close(self) -> None:
         self.device.shut_down(self.pump())

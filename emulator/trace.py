@@ -2,7 +2,9 @@
 
 `Tracer` pairs each unit the device made of host bytes (a `frame`, or a `stray` one, which may get an
 error reply) with the reply that followed on the same port, and turns the rest (units the device
-garbled or never heard, unsolicited output, device events) into lines of their own. `LogFollower`
+garbled or never heard, unsolicited output, device events) into lines of their own; `Tracer.pair`
+gives the same as items (an `Exchange`, or a record of its own), which `stage-emu view` draws from
+the control channel's traffic records (emulator/view.py). `LogFollower`
 (emulator/trace_reader.py) reads the file a complete line at a time, as `tail -f` does when asked to
 follow, and `trace_lines` ties the two together. The CLI is emulator/cli_trace.py.
 """
@@ -56,7 +58,12 @@ class Record:
 
 def parse_record(text: str) -> Record:
     """A log line as a record; ValueError when it is not one."""
-    entry = json.loads(text)
+    return record_from(json.loads(text))
+
+
+def record_from(entry: Any) -> Record:
+    """A decoded log line (or a control channel's `traffic` event) as a record; ValueError when it
+    is not one."""
     if not isinstance(entry, dict):
         raise ValueError("not a JSON object")
     t, wall = _float(entry.get("t")), _float(entry.get("wall"))
@@ -177,6 +184,26 @@ def event_line(record: Record) -> str:
 
 
 @dataclass(frozen=True)
+class Exchange:
+    """A request and its reply; without one, `missing` says why."""
+
+    request: Record
+    reply: Record | None
+    missing: str = "no reply"
+
+
+#: what pairing makes of records: exchanges, and records of their own (traffic outside any
+#: exchange, or a device event: a record without a port)
+Item = Exchange | Record
+
+
+def item_line(item: Item) -> str:
+    if isinstance(item, Exchange):
+        return exchange_line(item.request, item.reply, item.missing)
+    return unit_line(item) if item.port is not None else event_line(item)
+
+
+@dataclass(frozen=True)
 class TraceOptions:
     device: str | None = None
     port: str | None = None
@@ -195,6 +222,10 @@ class Tracer:
         self._held_events: dict[str, list[Record]] = {}
 
     def feed(self, record: Record) -> list[str]:
+        return [item_line(item) for item in self.pair(record)]
+
+    def pair(self, record: Record) -> list[Item]:
+        """What `record` completes or stands for, in order (empty while a request awaits its reply)."""
         ports = self.ports.setdefault(record.device, set())
         if record.port is not None:
             ports.add(record.port)
@@ -204,20 +235,20 @@ class Tracer:
             if any(device == record.device for device, _ in self._open):
                 self._held_events.setdefault(record.device, []).append(record)
                 return []
-            return [event_line(record)]
+            return [record]
         key = (record.device, record.port)
         request = self._open.pop(key, None)
-        out: list[str] = []
+        out: list[Item] = []
         if request is not None:
             answered = record.direction == TX and record.kind in REPLY_KINDS
-            out.append(exchange_line(request, record if answered else None))
+            out.append(Exchange(request, record if answered else None))
             out.extend(self._release_events(record.device))
             if answered:
                 return out
         if record.direction == RX and record.kind in REQUEST_KINDS:
             self._open[key] = record
         else:
-            out.append(unit_line(record))
+            out.append(record)
         return out
 
     def finish(self) -> list[str]:
@@ -225,12 +256,15 @@ class Tracer:
         return self.expire(math.inf)
 
     def expire(self, written_before: float, missing: str = "no reply") -> list[str]:
-        """Requests written (wall clock) before `written_before` still waiting for a reply, shown
-        without one, and the events held behind them."""
-        out: list[str] = []
+        return [item_line(item) for item in self.expire_items(written_before, missing)]
+
+    def expire_items(self, written_before: float, missing: str = "no reply") -> list[Item]:
+        """Requests written (wall clock) before `written_before` still waiting for a reply, without
+        one, and the events held behind them."""
+        out: list[Item] = []
         for key in sorted(self._open, key=lambda key: self._open[key].t):
             if self._open[key].wall < written_before:
-                out.append(exchange_line(self._open.pop(key), None, missing))
+                out.append(Exchange(self._open.pop(key), None, missing))
                 out.extend(self._release_events(key[0]))
         return out
 
@@ -254,10 +288,10 @@ class Tracer:
             )
         return options.port is None or record.port == options.port
 
-    def _release_events(self, device: str) -> list[str]:
+    def _release_events(self, device: str) -> list[Record]:
         if any(open_device == device for open_device, _ in self._open):
             return []
-        return [event_line(event) for event in self._held_events.pop(device, [])]
+        return self._held_events.pop(device, [])
 
 
 @dataclass

@@ -43,6 +43,11 @@ Device events (the control channel's pushed events) are records with `dir` `ev` 
   frame of an AUTOFOCUS scan: `z_um`, `value`) are, like `move`, built only while a log is kept and
   go only to it (`LOG_ONLY`).
 
+Control-channel traffic subscribers (`{"op": "subscribe", "device": ..., "traffic": true}`) get the
+same `rx`/`tx` records as they are written, without device events (they have their own stream):
+`DeviceTraffic.sink`. The runner keeps a `DeviceTraffic`, and the model explains, only while a log is
+kept or a sink is set (`DeviceRunner.watch_traffic`); otherwise nothing is formatted.
+
 The log is a side channel: a disk that fills up or a file that cannot be written must never stop a
 device from answering. The first failure is logged once and traffic logging stops; SIGUSR1
 (`reopen`, as after log rotation) starts it again on a fresh file at the same path.
@@ -55,6 +60,7 @@ import json
 import logging
 import os
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TextIO
@@ -74,6 +80,28 @@ CRISP_SAMPLE, AF_SAMPLE = "crisp_sample", "af_sample"
 #: events a model builds only while explaining (a traffic log is kept): they go to the log alone, so
 #: control-channel subscribers see the same events with or without a log, and few of them
 LOG_ONLY = frozenset({MOVE, CRISP_SAMPLE, AF_SAMPLE})
+
+#: takes each `rx`/`tx` record (the log's JSON object) as it is written
+TrafficSink = Callable[[dict[str, Any]], None]
+
+
+def traffic_entry(
+    t: float, device: str, port: str, direction: str, data: bytes, summary: str | None, kind: str | None
+) -> dict[str, Any]:
+    """One `rx`/`tx` record, as the log writes it and traffic subscribers get it."""
+    entry = {
+        "t": round(t, 6),
+        "wall": round(time.time(), 6),
+        "device": device,
+        "port": port,
+        "dir": direction,
+        "hex": data.hex(" "),
+    }
+    if kind:
+        entry["kind"] = kind
+    if summary:
+        entry["summary"] = summary
+    return entry
 
 
 class TrafficLog:
@@ -100,23 +128,10 @@ class TrafficLog:
         summary: str | None,
         kind: str | None = None,
     ) -> None:
-        if self._stream is None:
-            return
-        entry = {
-            "t": round(t, 6),
-            "wall": round(time.time(), 6),
-            "device": device,
-            "port": port,
-            "dir": direction,
-            "hex": data.hex(" "),
-        }
-        if kind:
-            entry["kind"] = kind
-        if summary:
-            entry["summary"] = summary
-        self._write(entry)
+        if self._stream is not None:
+            self.write(traffic_entry(t, device, port, direction, data, summary, kind))
 
-    def _write(self, entry: dict[str, Any]) -> None:
+    def write(self, entry: dict[str, Any]) -> None:
         stream = self._stream
         if stream is None:
             return
@@ -137,7 +152,7 @@ class TrafficLog:
             return
         entry = {"t": round(t, 6), "wall": round(time.time(), 6), "device": device, "dir": EV}
         entry.update((k, v) for k, v in event.items() if k != "t")
-        self._write(entry)
+        self.write(entry)
 
     def reopen(self) -> None:
         """Close and reopen the file (after rotation, or to resume after a write failure)."""
@@ -174,21 +189,35 @@ class _Sending:
 
 
 class DeviceTraffic:
-    """One device's records for the log (emulator/runner.py feeds it). Records gathered during a
-    pump are written by `flush`, sorted by device time: a pump may receive host bytes completed
-    after a reply it sends."""
+    """One device's records for the log and the sink (emulator/runner.py feeds it). Records gathered
+    during a pump are written by `flush`, sorted by device time: a pump may receive host bytes
+    completed after a reply it sends.
 
-    def __init__(self, log: TrafficLog, device: str) -> None:
+    `on_wire` gives, per port, the bytes already on its wire when this starts (a sink attached while
+    the device sends): they leave unrecorded, so the first record is the first whole emission."""
+
+    def __init__(self, log: TrafficLog | None, device: str, on_wire: dict[str, int] | None = None) -> None:
         self._log = log
         self._device = device
+        #: traffic subscribers' sink (DeviceRunner.watch_traffic)
+        self.sink: TrafficSink | None = None
         self._records: list[tuple[float, str, str, bytes, str, str | None]] = []
         #: per port, the emissions queued on its wire, in order (the pacer keeps one run each)
-        self._sending: dict[str, list[_Sending]] = {}
+        self._sending: dict[str, list[_Sending]] = {
+            port: [_Sending(b"", "", None, count)] for port, count in (on_wire or {}).items() if count
+        }
         #: device events gathered during a pump, with their device times
         self._events: list[tuple[float, dict[str, Any]]] = []
 
+    @property
+    def logs(self) -> bool:
+        """Whether a traffic log takes the records (else only the sink does)."""
+        return self._log is not None
+
     def events(self, now: float, events: list[dict[str, Any]]) -> None:
-        """Device events drained at `now` (an event's own `t` when it has one)."""
+        """Device events drained at `now` (an event's own `t` when it has one), for the log only."""
+        if self._log is None:
+            return
         for event in events:
             t = event.get("t")
             self._events.append((t if isinstance(t, (int, float)) else now, event))
@@ -228,6 +257,8 @@ class DeviceTraffic:
         if sending.left > 0:
             return
         queue.pop(0)
+        if not sending.data:  # on the wire before this started (`on_wire`)
+            return
         if sending.dropped:
             lost = f"host not reading: {sending.dropped} of {len(sending.data)} bytes dropped"
             summary = lost if sending.summary is None else f"{lost}: {sending.summary}"
@@ -239,6 +270,8 @@ class DeviceTraffic:
         """The port's wire was cleared: what had not left is lost."""
         for sending in self._sending.pop(port, []):
             unsent = sending.data[len(sending.data) - sending.left :]
+            if not unsent:
+                continue
             summary = why if sending.summary is None else f"{why}: {sending.summary}"
             self._records.append((t, port, TX, unsent, LOST, summary))
 
@@ -247,6 +280,8 @@ class DeviceTraffic:
             return
         records, self._records = self._records, []
         events, self._events = self._events, []
+        log = self._log if self._log is not None and self._log.active else None
+        sink = self.sink
         records.sort(key=lambda record: record[0])
         events.sort(key=lambda event: event[0])
         pending = iter(events)
@@ -254,9 +289,19 @@ class DeviceTraffic:
         for t, port, direction, data, kind, summary in records:
             # traffic first at an instant: the command before what it set off
             while event is not None and event[0] < t:
-                self._log.event(event[0], self._device, event[1])
+                self._event(event[0], event[1])
                 event = next(pending, None)
-            self._log.record(t, self._device, port, direction, data, summary, kind)
+            if log is None and sink is None:
+                continue
+            entry = traffic_entry(t, self._device, port, direction, data, summary, kind)
+            if log is not None:
+                log.write(entry)
+            if sink is not None:
+                sink(entry)
         while event is not None:
-            self._log.event(event[0], self._device, event[1])
+            self._event(event[0], event[1])
             event = next(pending, None)
+
+    def _event(self, t: float, event: dict[str, Any]) -> None:
+        if self._log is not None:
+            self._log.event(t, self._device, event)

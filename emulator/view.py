@@ -1,8 +1,9 @@
 """The data behind `stage-emu view`: pure functions from the control channel's `list`, device
-snapshots and pushed events to the rows the screen shows (emulator/cli_view.py draws them).
+snapshots, pushed events and traffic records to the rows the screen shows (emulator/cli_view.py
+draws them).
 
-The daemon's `list` does not name a traffic log, so the view cannot decode exchanges; it shows each
-device's last pushed events instead (and says so on screen).
+Traffic records (`{"ev": "traffic", ...}`, the traffic log's rx/tx records) are paired into
+exchanges by `stage-emu trace`'s own Tracer (emulator/trace.py); each becomes an `ExchangeRow`.
 """
 
 from __future__ import annotations
@@ -12,8 +13,26 @@ from collections import deque
 from dataclasses import dataclass, field
 from typing import Any
 
+from emulator.device import LOST
+from emulator.trace import (
+    REPLY_WAIT_S,
+    Exchange,
+    Item,
+    Record,
+    TraceOptions,
+    Tracer,
+    readable,
+    record_from,
+    reply_gist,
+)
+from emulator.trafficlog import RX
+
 #: device events kept per device for the "last events" panel
-EVENTS_KEPT = 8
+EVENTS_KEPT = 4
+#: exchanges (and traffic outside any) kept per device for the "last exchanges" panel
+EXCHANGES_KEPT = 8
+#: the pushed event that carries a traffic record
+TRAFFIC = "traffic"
 #: events that fire many times per move and say nothing a snapshot does not
 NOISY_EVENTS = frozenset({"move"})
 
@@ -26,6 +45,20 @@ class PortRow:
     host: str
     timing: str
     stats: str
+
+
+@dataclass(frozen=True)
+class ExchangeRow:
+    """One line of the "last exchanges" panel: what the host sent (the model's summary, else the
+    bytes), what came back, and `flag` for anything but a plain exchange (STRAY, GARBLED, LOST,
+    UNSOLICITED; `reply LOST` for an answer that never reached the host)."""
+
+    t: float
+    port: str
+    flag: str
+    request: str
+    reply: str
+    latency_ms: float | None = None
 
 
 @dataclass
@@ -41,17 +74,22 @@ class DeviceView:
     lcd: list[str] = field(default_factory=list)
     ttl_out0: str = "-"
     events: deque[str] = field(default_factory=lambda: deque(maxlen=EVENTS_KEPT))
+    exchanges: deque[ExchangeRow] = field(default_factory=lambda: deque(maxlen=EXCHANGES_KEPT))
 
 
 @dataclass
 class ViewState:
     devices: dict[str, DeviceView] = field(default_factory=dict)
-    #: events the daemon dropped because the view fell behind
+    #: events and traffic records the daemon dropped because the view fell behind
     dropped: int = 0
+    #: the daemon's traffic log (from `list`), None when it keeps none
+    traffic_log: str | None = None
+    tracer: Tracer = field(default_factory=lambda: Tracer(TraceOptions(events="none")))
 
     def apply_list(self, listing: list[dict[str, Any]]) -> None:
         """Devices and their ports from `list`; devices no longer listed go away."""
         names = [str(entry.get("device")) for entry in listing]
+        self.traffic_log = next((str(e["traffic_log"]) for e in listing if e.get("traffic_log")), None)
         for name in list(self.devices):
             if name not in names:
                 del self.devices[name]
@@ -73,12 +111,58 @@ class ViewState:
         device = event.get("device")
         if not isinstance(device, str):
             return None
+        if event.get("ev") == TRAFFIC:
+            try:
+                record = record_from(event)
+            except ValueError:
+                return None
+            self._add(self.tracer.pair(record))
+            return device
         if event.get("ev") == "dropped":
             self.dropped += int(event.get("count", 0))
         view = self.devices.setdefault(device, DeviceView(device))
         if event.get("ev") not in NOISY_EVENTS:
             view.events.append(event_line(event))
         return device
+
+    def expire(self, written_before: float) -> None:
+        """Show requests written (wall clock) before `written_before` still without a reply."""
+        self._add(self.tracer.expire_items(written_before, f"no reply within {REPLY_WAIT_S:g} s"))
+
+    def _add(self, items: list[Item]) -> None:
+        for item in items:
+            device = item.request.device if isinstance(item, Exchange) else item.device
+            self.devices.setdefault(device, DeviceView(device)).exchanges.append(exchange_row(item))
+
+
+def exchange_row(item: Item) -> ExchangeRow:
+    """An exchange, or traffic outside any (a lone record), as a row."""
+    if not isinstance(item, Exchange):
+        kind = item.kind or "bytes"
+        told = (item.summary or "").removeprefix(f"{kind}: ")
+        text = f"{readable(item.data)} {told}".strip() if item.data else told
+        sent, got = (text, "") if item.direction == RX else ("", text)
+        return ExchangeRow(item.t, item.port or "-", kind.upper(), sent, got)
+    request, reply = item.request, item.reply
+    flags = ["STRAY"] if request.kind == "stray" else []
+    said = _said(request)
+    if reply is None:
+        return ExchangeRow(request.t, request.port or "-", " ".join(flags), said, item.missing)
+    shown = readable(reply.data)
+    gist = reply_gist(reply.summary, request.summary, shown[1:-1])
+    answer = gist or shown
+    if reply.kind == LOST:
+        flags.append("reply LOST")
+        answer = f"{shown} ({gist})" if gist else shown
+    latency = (reply.t - request.t) * 1000
+    return ExchangeRow(request.t, request.port or "-", " ".join(flags), said, answer, latency)
+
+
+def _said(request: Record) -> str:
+    """A request as the device read it: its summary (a stray unit's bytes with it), else the bytes."""
+    if request.kind == "stray":
+        return f"{readable(request.data)} {request.summary or ''}".rstrip()
+    return request.summary or readable(request.data)
 
 
 def port_row(port: dict[str, Any]) -> PortRow:

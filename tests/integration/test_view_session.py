@@ -1,6 +1,7 @@
 """`stage-emu view` against a running daemon: one pass of its update function after a move (the
-event marks the device stale and its snapshot is read again), and the live command exiting with one
-line and status 1 when the daemon goes away."""
+event marks the device stale and its snapshot is read again), a host's command shown decoded from
+the traffic records the view subscribes to (the daemon keeps no traffic log), and the live command
+exiting with one line and status 1 when the daemon goes away."""
 
 from __future__ import annotations
 
@@ -10,7 +11,10 @@ import sys
 import time
 from pathlib import Path
 
-from emulator.cli_view import full_refresh, update
+import serial
+from rich.console import Console
+
+from emulator.cli_view import full_refresh, render, update
 from emulator.view import ViewState
 from protocols.clients import MS2000
 from tests.support.daemon import ROOT, start_daemon
@@ -19,11 +23,13 @@ DEVICE = "ms2000"
 
 
 def test_one_event_updates_the_device(tmp_path: Path) -> None:
-    daemon = start_daemon(tmp_path, ["--profile", DEVICE], expect_ports=1)
+    log = tmp_path / "traffic.jsonl"
+    daemon = start_daemon(tmp_path, ["--profile", DEVICE, "--log-traffic", str(log)], expect_ports=1)
     try:
         client = daemon.control()
         state = ViewState()
         full_refresh(client, state, set())
+        assert state.traffic_log == str(log.resolve())
         assert state.devices[DEVICE].positions.startswith("X=0.0000mm")
         with MS2000(daemon.port(DEVICE), 9600) as stage:
             stage.move(X=1000)
@@ -37,6 +43,29 @@ def test_one_event_updates_the_device(tmp_path: Path) -> None:
         assert stale == {DEVICE}
         assert state.devices[DEVICE].positions.startswith("X=0.1000mm")
         assert state.devices[DEVICE].busy == "idle"
+    finally:
+        assert daemon.stop() == 0
+
+
+def test_a_host_command_is_shown_decoded(tmp_path: Path) -> None:
+    daemon = start_daemon(tmp_path, ["--profile", DEVICE], expect_ports=1)
+    try:
+        client = daemon.control()
+        state = ViewState()
+        full_refresh(client, state, set())
+        assert state.traffic_log is None
+        with serial.Serial(daemon.port(DEVICE), 9600, timeout=5) as host:
+            host.write(b"W X Y\r")
+            assert host.read_until(b"\n") == b":A 0 0\r\n"
+        deadline = time.monotonic() + 10
+        while not state.devices[DEVICE].exchanges:
+            assert time.monotonic() < deadline, "no exchange shown"
+            update(client, state, timeout=1.0)
+        row = state.devices[DEVICE].exchanges[0]
+        assert (row.port, row.flag, row.request, row.reply) == ("main", "", "W X Y [WHERE]", '":A 0 0\\r\\n"')
+        console = Console(record=True, width=120)
+        console.print(render(state))
+        assert 'W X Y [WHERE] -> ":A 0 0\\r\\n"' in " ".join(console.export_text().split())
     finally:
         assert daemon.stop() == 0
 

@@ -1,17 +1,19 @@
-"""`stage-emu view`: rows from `list`, snapshots and events (emulator/view.py), their rendering, and
-the command's one-line failure without a daemon."""
+"""`stage-emu view`: rows from `list`, snapshots, events and traffic records (emulator/view.py),
+their rendering, and the command's one-line failure without a daemon."""
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
 
+import pytest
 from click.testing import CliRunner
 from rich.console import Console
 
 from emulator.cli import main
-from emulator.cli_view import EVENTS_NOTE, render
-from emulator.view import EVENTS_KEPT, ViewState, event_line
+from emulator.cli_view import render
+from emulator.trafficlog import traffic_entry
+from emulator.view import EVENTS_KEPT, EXCHANGES_KEPT, ExchangeRow, ViewState, event_line
 
 LISTING: list[dict[str, Any]] = [
     {
@@ -90,9 +92,58 @@ def test_event_line_without_time() -> None:
     assert event_line({"ev": "button", "name": "zero", "device": "d"}) == 'button name="zero"'
 
 
+def traffic(t: float, direction: str, data: bytes, kind: str, summary: str | None = None) -> dict[str, Any]:
+    """A pushed traffic record, as the control channel sends it."""
+    return {"ev": "traffic", **traffic_entry(t, "ms2000", "main", direction, data, summary, kind)}
+
+
+def test_traffic_records_become_exchanges_with_flags() -> None:
+    state = loaded()
+    for record in (
+        traffic(1.0, "rx", b"W X Y\r", "frame", "W X Y [WHERE]"),
+        traffic(1.008, "tx", b":A 0 0\r\n", "reply", ":A 0 0\\r\\n (reply to W X Y [WHERE])"),
+        traffic(2.0, "rx", b"\x1e", "garbled", "the device read 1E from the host's 63"),
+        traffic(2.1, "rx", b"?\r", "stray", "bad frame"),
+        traffic(2.2, "tx", b"1\r", "lost", "not sent: drop fault: error '1'"),
+        traffic(3.0, "tx", b"N\r\n", "unsolicited", "status"),
+        traffic(4.0, "rx", b"c\r", "frame"),
+    ):
+        assert state.apply_event(record) == "ms2000"
+    rows = list(state.devices["ms2000"].exchanges)
+    assert rows == [
+        ExchangeRow(1.0, "main", "", "W X Y [WHERE]", '":A 0 0\\r\\n"', pytest.approx(8.0)),
+        ExchangeRow(2.0, "main", "GARBLED", '"\\x1e" the device read 1E from the host\'s 63', ""),
+        ExchangeRow(
+            2.1,
+            "main",
+            "STRAY reply LOST",
+            '"?\\r" bad frame',
+            "\"1\\r\" (not sent: drop fault: error '1')",
+            pytest.approx(100.0),
+        ),
+        ExchangeRow(3.0, "main", "UNSOLICITED", "", '"N\\r\\n" status'),
+    ]
+    state.expire(float("inf"))  # `c` waits for its reply until then
+    assert state.devices["ms2000"].exchanges[-1] == ExchangeRow(
+        4.0, "main", "", '"c\\r"', "no reply within 2 s"
+    )
+    for i in range(EXCHANGES_KEPT):
+        state.apply_event(traffic(5.0 + i, "tx", b"x", "unsolicited"))
+    assert len(state.devices["ms2000"].exchanges) == EXCHANGES_KEPT
+
+
+def test_a_malformed_traffic_record_is_skipped() -> None:
+    state = loaded()
+    assert state.apply_event({"ev": "traffic", "device": "ms2000", "dir": "rx"}) is None
+    assert not state.devices["ms2000"].exchanges
+
+
 def test_rendering() -> None:
     state = loaded()
     state.apply_event({"ev": "move_complete", "t": 2.0, "device": "ms2000"})
+    state.apply_event(traffic(1.0, "rx", b"W X Y\r", "frame", "W X Y [WHERE]"))
+    state.apply_event(traffic(1.008, "tx", b":A 0 0\r\n", "reply", ":A 0 0\\r\\n (reply to W X Y [WHERE])"))
+    state.apply_event(traffic(2.0, "rx", b"\x1e", "garbled", "the device read 1E"))
     console = Console(record=True, width=120)
     console.print(render(state))
     text = console.export_text()
@@ -105,13 +156,18 @@ def test_rendering() -> None:
         "9600 8N1 rtscts",
         "/run/x/ms2000",
         "t=2.000 move_complete",
+        '1.000 main W X Y [WHERE] -> ":A 0 0\\r\\n" 8.0 ms',
+        'GARBLED "\\x1e" the device read 1E',
         "mp285 mp285 (mp285)",
         "moving",
         "(none yet)",
+        "keeps no traffic log",
     ):
-        assert expected in text, expected
-    assert "these are its last events" in EVENTS_NOTE
-    assert "last events, not" in text.replace("\n", " ")
+        assert expected in " ".join(text.split()), expected
+    state.apply_list([{**LISTING[0], "traffic_log": "/tmp/t.jsonl"}])
+    console = Console(record=True, width=120)
+    console.print(render(state))
+    assert "Traffic log: /tmp/t.jsonl" in console.export_text()
 
 
 def test_no_daemon_is_one_line_and_exit_1(tmp_path: Path) -> None:
