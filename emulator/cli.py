@@ -14,6 +14,7 @@ import click
 from emulator import registry
 from emulator.cli_gcode import gcode
 from emulator.cli_plot import plot
+from emulator.cli_session import proxy, replay_command
 from emulator.cli_trace import trace
 from emulator.cli_view import view
 from emulator.clock import MAX_SCALE, MAX_STEP, MIN_SCALE, check_scale, check_step
@@ -75,6 +76,8 @@ def main() -> None:
 
 main.add_command(gcode)
 main.add_command(plot)
+main.add_command(proxy)
+main.add_command(replay_command)
 main.add_command(trace)
 main.add_command(view)
 
