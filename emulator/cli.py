@@ -399,12 +399,13 @@ def ctl_clock(ctx: click.Context, scale: float | None, action: str | None, step:
 
 @ctl.command("watch")
 @click.argument("device")
+@click.option("--traffic", is_flag=True, help="Its traffic records (what the traffic log writes) instead.")
 @click.pass_context
-def ctl_watch(ctx: click.Context, device: str) -> None:
-    """Print DEVICE's pushed events until Ctrl-C."""
+def ctl_watch(ctx: click.Context, device: str, traffic: bool) -> None:
+    """Print DEVICE's pushed events (or, with --traffic, its traffic records) until Ctrl-C."""
     with _client(ctx) as client:
         try:
-            client.subscribe(device)
+            client.subscribe(device, traffic=traffic)
         except ControlFailure as exc:
             _fail(str(exc))
         try:

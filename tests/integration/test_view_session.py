@@ -5,7 +5,9 @@ exiting with one line and status 1 when the daemon goes away."""
 
 from __future__ import annotations
 
+import json
 import os
+import select
 import subprocess
 import sys
 import time
@@ -20,6 +22,7 @@ from protocols.clients import MS2000
 from tests.support.daemon import ROOT, start_daemon
 
 DEVICE = "ms2000"
+WATCH = ("watch", DEVICE, "--traffic")
 
 
 def test_one_event_updates_the_device(tmp_path: Path) -> None:
@@ -99,3 +102,35 @@ def _has_socket(pid: int) -> bool:
         return any(os.readlink(fd).startswith("socket:") for fd in fds.iterdir())
     except OSError:
         return False
+
+
+def test_ctl_watch_traffic_prints_the_records(tmp_path: Path) -> None:
+    """`stage-emu ctl watch DEVICE --traffic`: the traffic records, one JSON line each, with no log."""
+    daemon = start_daemon(tmp_path, ["--profile", DEVICE], expect_ports=1)
+    watch = subprocess.Popen(
+        [sys.executable, "-m", "emulator.cli", "ctl", "--control", str(daemon.control_path), *WATCH],
+        stdout=subprocess.PIPE,
+        env={**os.environ, "PYTHONPATH": str(ROOT)},
+        text=True,
+    )
+    try:
+        assert watch.stdout is not None
+        records: list[dict[str, object]] = []
+        with serial.Serial(daemon.port(DEVICE), 9600, timeout=5) as host:
+            deadline = time.monotonic() + 15
+            while not records:  # until the watch has subscribed, a command goes unrecorded
+                assert time.monotonic() < deadline and watch.poll() is None, "no traffic record"
+                host.write(b"W X Y\r")
+                assert host.read_until(b"\n") == b":A 0 0\r\n"
+                if select.select([watch.stdout], [], [], 0.2)[0]:
+                    records.append(json.loads(watch.stdout.readline()))
+        assert records[0]["ev"] == "traffic" and records[0]["device"] == DEVICE
+        assert (records[0]["dir"], records[0]["kind"], records[0]["summary"]) == (
+            "rx",
+            "frame",
+            "W X Y [WHERE]",
+        )
+    finally:
+        watch.terminate()
+        watch.wait(timeout=10)
+        assert daemon.stop() == 0
