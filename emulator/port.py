@@ -89,6 +89,8 @@ class Channel:
     paced_for: tuple[Any, ...] = ()
     #: the (host, device) settings last checked for a mismatch
     checked_for: tuple[Any, ...] = ()
+    #: the port was told it had no room (`DeviceRunner.input_room`) and has stopped reading
+    throttled: bool = False
 
 
 def unsent(ch: Channel) -> str | None:

@@ -17,6 +17,7 @@ from __future__ import annotations
 import asyncio
 import logging
 from collections.abc import Callable
+from functools import partial
 from typing import Any
 
 from emulator.clock import Clock
@@ -45,29 +46,16 @@ RELEASE_EARLY_S = 0.0005
 
 
 class _ChannelSink:
-    """Adapts transport callbacks to the runner for one channel."""
+    """Transport callbacks bound to the runner for one channel (partials: a port's every read and
+    every byte of input pass here, and a bound C-level call costs no Python frame)."""
 
     def __init__(self, runner: DeviceRunner, channel: Channel) -> None:
-        self._runner = runner
-        self._channel = channel
-
-    def host_attached(self, host: HostLine | None) -> None:
-        self._runner.host_attached(self._channel, host)
-
-    def host_detached(self) -> None:
-        self._runner.host_detached(self._channel)
-
-    def host_line(self, host: HostLine) -> None:
-        self._runner.host_line(self._channel, host)
-
-    def host_data(self, data: bytes) -> None:
-        self._runner.host_data(self._channel, data)
-
-    def room(self) -> int:
-        return self._runner.input_room(self._channel)
-
-    def input_discarded(self, count: int) -> None:
-        self._runner.input_discarded(self._channel, count)
+        self.host_attached: Callable[[HostLine | None], None] = partial(runner.host_attached, channel)
+        self.host_detached: Callable[[], None] = partial(runner.host_detached, channel)
+        self.host_line: Callable[[HostLine], None] = partial(runner.host_line, channel)
+        self.host_data: Callable[[bytes], None] = partial(runner.host_data, channel)
+        self.room: Callable[[], int] = partial(runner.input_room, channel)
+        self.input_discarded: Callable[[int], None] = partial(runner.input_discarded, channel)
 
 
 class DeviceRunner:
@@ -195,10 +183,12 @@ class DeviceRunner:
             ch.from_host.clear()
 
     def input_room(self, ch: Channel) -> int:
-        """Host bytes `ch` may take now (PortSink.room): 0 while either direction is backed up."""
-        if len(ch.to_host) >= OUTPUT_BACKLOG:
-            return 0
-        return max(INPUT_BACKLOG - len(ch.from_host), 0)
+        """Host bytes `ch` may take now (PortSink.room): 0 while either direction is backed up, and
+        then the port stops reading until `_resume_reading` says so."""
+        room = 0 if len(ch.to_host) >= OUTPUT_BACKLOG else max(INPUT_BACKLOG - len(ch.from_host), 0)
+        if room == 0:
+            ch.throttled = True
+        return room
 
     # ---- the step -----------------------------------------------------------------------------
 
@@ -222,8 +212,8 @@ class DeviceRunner:
         for t, channel, data in self._due_input(now):
             device.receive(data, t, channel)
         device.advance(now)
-        self._collect_output()
         early = self.clock.device_span(RELEASE_EARLY_S)
+        self._collect_output(now + early)
         self._write_due(now + early)
         # what follows the write is off the round trip's path: the host is reading the reply by now
         if self._traffic is not None:
@@ -239,14 +229,20 @@ class DeviceRunner:
         due: list[tuple[float, str, bytes]] = []
         for ch in self.channels.values():
             if ch.from_host.per_char > 0:
-                arrived = [(t, ch.name, bytes([b])) for t, b in ch.from_host.take_each_due(now)]
+                arrived = [(t, bytes([b])) for t, b in ch.from_host.take_each_due(now)]
             else:
-                arrived = [(t, ch.name, data) for t, data in ch.from_host.take_due(now)]
-            if not ch.faults.hung:  # a hung device hears nothing that arrives
-                due.extend(arrived)
-            elif arrived and self._traffic is not None:
-                data = b"".join(data for _, _, data in arrived)
-                self._traffic.lost_rx(arrived[-1][0], ch.name, data, "hang fault: the device hears nothing")
+                arrived = ch.from_host.take_due(now)
+            if not arrived:
+                continue
+            if ch.faults.hung:  # a hung device hears nothing that arrives
+                if self._traffic is not None:
+                    data = b"".join(data for _, data in arrived)
+                    self._traffic.lost_rx(
+                        arrived[-1][0], ch.name, data, "hang fault: the device hears nothing"
+                    )
+                continue
+            for t, data in arrived:
+                due.append((t, ch.name, data))
         if len(self.channels) > 1:
             due.sort(key=lambda item: item[0])
         return due
@@ -264,7 +260,7 @@ class DeviceRunner:
             host = ch.host or own
             ch.from_host.per_char = settings_char_time(host, own) if realistic else 0.0
 
-    def _collect_output(self) -> None:
+    def _collect_output(self, release: float) -> None:
         if self._traffic is not None:
             for note in self.device.take_rx_notes():
                 self._traffic.rx(note)
@@ -272,7 +268,7 @@ class DeviceRunner:
         if len(emissions) > 1:
             emissions.sort(key=lambda e: e.due)
         for emission in emissions:
-            self._route(emission)
+            self._route(emission, release)
         events = self.device.take_events()
         if events:
             if self._traffic is not None:
@@ -282,7 +278,9 @@ class DeviceRunner:
                     if event["ev"] not in LOG_ONLY:  # subscribers see the same with or without a log
                         self._on_event(self.name, event)
 
-    def _route(self, emission: Emission) -> None:
+    def _route(self, emission: Emission, release: float) -> None:
+        """Apply the port's faults to an emission and put it on the port's wire; bytes released by
+        `release` with nothing ahead of them and nothing to pace go out at once."""
         ch = self.channels.get(emission.channel)
         if ch is None:
             return
@@ -302,25 +300,35 @@ class DeviceRunner:
             count = min(ch.faults.corrupt_bytes, len(data))
             data = bytes(b ^ CORRUPT_MASK for b in data[:count]) + data[count:]
             ch.faults.corrupt_bytes -= count
-        ch.to_host.push(emission.due + ch.faults.latency_s, data)
+        due = emission.due + ch.faults.latency_s
+        if self._traffic is None and ch.to_host.per_char == 0 and due <= release and not ch.to_host:
+            # what `_write_due` would send in this very pump, without a round through the pacer
+            self._send(ch, data)
+            return
+        ch.to_host.push(due, data)
         if self._traffic is not None:
             self._traffic.queued(emission, data, count)
 
     def _write_due(self, now: float) -> None:
         for ch in self.channels.values():
             for t, data in ch.to_host.take_due(now):
-                dropped = len(data)
-                if ch.transport is not None and ch.attached:
-                    dropped = ch.transport.write(data)
-                    if ch.pending_mismatch:
-                        self._report_mismatch(ch)
-                    if dropped:
-                        self._output_dropped(ch, dropped)
-                    elif ch.stats.dropping:
-                        ch.stats.dropping = False
-                        log.info("%s/%s: host takes output again", self.name, ch.name)
+                dropped = self._send(ch, data)
                 if self._traffic is not None:
                     self._traffic.left(t, ch.name, len(data), dropped)
+
+    def _send(self, ch: Channel, data: bytes) -> int:
+        """Hand bytes whose wire time is over to the port; returns how many of them were dropped."""
+        if ch.transport is None or not ch.attached:
+            return len(data)
+        dropped = ch.transport.write(data)
+        if ch.pending_mismatch:
+            self._report_mismatch(ch)
+        if dropped:
+            self._output_dropped(ch, dropped)
+        elif ch.stats.dropping:
+            ch.stats.dropping = False
+            log.info("%s/%s: host takes output again", self.name, ch.name)
+        return dropped
 
     def _output_dropped(self, ch: Channel, count: int) -> None:
         ch.stats.output_dropped += count
@@ -336,13 +344,16 @@ class DeviceRunner:
 
     def _resume_reading(self) -> None:
         """Let ports read again once their backlogs are down to half (not at every byte: a port
-        then reads in batches, not one syscall per character)."""
+        then reads in batches, not one syscall per character). Only a port told there was no room
+        has stopped (emulator/transports/base.py)."""
         for ch in self.channels.values():
             if (
-                ch.transport is not None
+                ch.throttled
+                and ch.transport is not None
                 and len(ch.from_host) <= INPUT_BACKLOG // 2
                 and len(ch.to_host) <= OUTPUT_BACKLOG // 2
             ):
+                ch.throttled = False
                 ch.transport.resume_reading()
 
     def _check_mismatch(self) -> None:
@@ -379,14 +390,17 @@ class DeviceRunner:
     def _next_due(self, early: float) -> float | None:
         """The earliest of: the device's next event, a port's next paced byte (output released
         `early`), the next fault expiry."""
-        times = [self.device.next_deadline()]
+        due = self.device.next_deadline()
+        if self._actions and (due is None or self._actions[0][0] < due):
+            due = self._actions[0][0]
         for ch in self.channels.values():
             out = ch.to_host.next_due()
-            times.append(None if out is None else out - early)
-            times.append(ch.from_host.next_due())
-        if self._actions:
-            times.append(self._actions[0][0])
-        return min((t for t in times if t is not None), default=None)
+            if out is not None and (due is None or out - early < due):
+                due = out - early
+            into = ch.from_host.next_due()
+            if into is not None and (due is None or into < due):
+                due = into
+        return due
 
     def _arm_timer(self, early: float | None = None) -> None:
         if early is None:
