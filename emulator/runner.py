@@ -26,6 +26,7 @@ from emulator.line import REALISTIC, mismatches, settings_char_time
 from emulator.port import CORRUPT_MASK, Channel, Faults, fault_params, unsent
 from emulator.trafficlog import LOG_ONLY, DeviceTraffic, TrafficLog
 from emulator.transports.base import Transport
+from emulator.walltimer import LOOP_TIMER_EARLY_S, WallTimer, make_timer
 
 log = logging.getLogger("stage_emu.runner")
 
@@ -39,10 +40,10 @@ INPUT_BACKLOG = 4096
 #: reading too (the device is busy sending), so a host sending commands faster than their replies
 #: can go out does not queue replies without limit.
 OUTPUT_BACKLOG = 4096
-#: Paced output is released up to this much wall time before its instant. The loop can only sleep
-#: in whole milliseconds (epoll rounds its timeout up), so a timer for a byte wakes 0-1 ms late;
-#: releasing half a millisecond early centres each byte on its instant (±0.5 ms) instead.
-RELEASE_EARLY_S = 0.0005
+#: Paced output is released up to this much wall time before its instant when the runner has no
+#: timer of its own (in-process hosting pumps on the host's reads): as with the loop's millisecond
+#: timers (emulator/walltimer.py), half a millisecond early centres each byte on its instant.
+RELEASE_EARLY_S = LOOP_TIMER_EARLY_S
 
 
 class _ChannelSink:
@@ -76,12 +77,16 @@ class DeviceRunner:
         self.channels: dict[str, Channel] = {name: Channel(name) for name in self.device.channels}
         self._loop = loop
         self._on_event = on_event
-        self._timer: asyncio.TimerHandle | None = None
+        self._timer: WallTimer | None = None if loop is None else make_timer(loop, self._on_timer)
+        #: wall seconds output may leave early, given how late the timer wakes
+        self._early = RELEASE_EARLY_S if self._timer is None else self._timer.early
+        #: the device time the timer is armed for (None: not armed)
         self._timer_due: float | None = None
         self._actions: list[tuple[float, Callable[[], None]]] = []
         clock.on_change(self._on_clock_change)
 
     def _on_clock_change(self) -> None:
+        self._timer_due = None  # the same device time is now another wall delay: re-arm
         self.pump()
 
     @property
@@ -117,7 +122,7 @@ class DeviceRunner:
     def close(self) -> None:
         self.device.shut_down(self.pump())
         if self._timer is not None:
-            self._timer.cancel()
+            self._timer.close()
         for ch in self.channels.values():
             if ch.transport is not None:
                 ch.transport.close()
@@ -212,7 +217,7 @@ class DeviceRunner:
         for t, channel, data in self._due_input(now):
             device.receive(data, t, channel)
         device.advance(now)
-        early = self.clock.device_span(RELEASE_EARLY_S)
+        early = self.clock.device_span(self._early)
         self._collect_output(now + early)
         self._write_due(now + early)
         # what follows the write is off the round trip's path: the host is reading the reply by now
@@ -403,24 +408,24 @@ class DeviceRunner:
         return due
 
     def _arm_timer(self, early: float | None = None) -> None:
+        timer = self._timer
+        if timer is None:
+            return
         if early is None:
-            early = self.clock.device_span(RELEASE_EARLY_S)
+            early = self.clock.device_span(self._early)
         due = self._next_due(early)
-        if due == self._timer_due and self._timer is not None:
+        if due == self._timer_due:
             return
-        if self._timer is not None:
-            self._timer.cancel()
-            self._timer = None
-        self._timer_due = due
-        if due is None or self._loop is None:
-            return
-        delay = self.clock.wall_delay(due)
-        if delay is not None:
-            self._timer = self._loop.call_later(delay, self._on_timer, due)
+        delay = None if due is None else self.clock.wall_delay(due)
+        if delay is None:  # nothing due, or time stands still
+            self._timer_due = None
+            timer.cancel()
+        else:
+            self._timer_due = due
+            timer.arm(delay)
 
-    def _on_timer(self, due: float) -> None:
-        self._timer = None
-        self._timer_due = None
+    def _on_timer(self) -> None:
+        due, self._timer_due = self._timer_due, None
         self.pump(at_least=due)
 
     # ---- control operations -------------------------------------------------------------------
