@@ -4,18 +4,24 @@ Tests open the port with pyserial exactly as a host program would. `open_target(
 returns a `Target`; on the emulator each call gets a factory-fresh device (same daemon reused per
 profile/overrides/timing), on a real port the profile only supplies line settings and tests that ask
 for non-default profiles or overrides are skipped (mark tests that need the control channel
-`@pytest.mark.control`, exact timing `@pytest.mark.timing`). A device's second port (the MS2000's
-TTL REPORT `aux`) opens with `Target.open_aux()`: served next to the main port on the emulator,
+`@pytest.mark.control`, exact timing `@pytest.mark.timing`). A `stageemu://` URL as `--port` is an
+emulator in the test process, which has every profile: those tests run on it, with the URL's profile
+swapped. An `rfc2217://` URL opens with `Rfc2217Port`. A device's second port (the MS2000's TTL
+REPORT `aux`) opens with `Target.open_aux()`: served next to the main port on the emulator,
 `--aux-port PATH` on real hardware (skipped without it).
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
+import socket
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+from urllib.parse import parse_qsl, urlencode, urlsplit
 
 import pytest
 import serial
@@ -25,13 +31,21 @@ import emulator.urlhandler  # noqa: F401  (registers stageemu:// URLs for --port
 from emulator.control import ControlClient
 from emulator.profile import Profile, load_profile
 from emulator.registry import channels_of
+from emulator.urlhandler.url import SCHEME
 from tests.support.daemon import RunningDaemon, start_daemon
 
 
 class Rfc2217Port(rfc2217.Serial):
-    """pyserial's RFC 2217 client, except that a new read timeout stays in the client: pyserial
-    renegotiates every line setting with the server (0.1 s or more) on each timeout change, which
-    the vectors make before most reads."""
+    """pyserial's RFC 2217 client (what `serial_for_url("rfc2217://...")` opens) with two of its
+    waits taken out of the host's timing; the data and the line settings it sends are the same.
+
+    - A new read timeout stays in the client. pyserial renegotiates every line setting with the
+      server on each timeout change (0.1 s or more, polled), which the vectors make before most
+      reads: a read meant to end at an instant on the host's clock would end that much later.
+    - Closing waits for the server to close its end (the reader thread sees EOF) instead of
+      pyserial's fixed 0.3 s sleep "in case of quick reconnects": once it has, the server has let go
+      of the port and the next test's connection is not refused as a second host.
+    """
 
     @property
     def timeout(self) -> float | None:
@@ -40,6 +54,15 @@ class Rfc2217Port(rfc2217.Serial):
     @timeout.setter
     def timeout(self, value: float | None) -> None:
         self._timeout = value
+
+    def close(self) -> None:
+        reader, sock = self._thread, self._socket
+        if reader is not None and sock is not None:
+            with contextlib.suppress(OSError):
+                sock.shutdown(socket.SHUT_WR)  # the server sees the hang-up ...
+            reader.join(self._network_timeout)  # ... and closes its end: EOF ends the reader
+            self._thread = None  # so pyserial's close neither joins it again nor sleeps
+        super().close()
 
 
 @dataclass
@@ -78,7 +101,12 @@ class Target:
             "timeout": 2.0,
         }
         settings.update(overrides)
-        port = serial.serial_for_url(path or self.path, **settings)  # a path, rfc2217:// or stageemu:// URL
+        url = path or self.path  # a device path, an rfc2217:// or a stageemu:// URL
+        port = (
+            Rfc2217Port(url, **settings)
+            if url.startswith("rfc2217://")
+            else serial.serial_for_url(url, **settings)
+        )
         self._ports.append(port)
         return port
 
@@ -98,6 +126,20 @@ class Target:
             port.close()
         if self.control is not None:
             self.control.close()  # the daemon serves a bounded number of control connections
+
+
+def carries_parity(config: pytest.Config) -> bool:
+    """Whether the data bits and parity a host sets reach the device through `--port`: not on the
+    emulator's pseudo-terminals (the pty driver clears PARENB, MP-4), nor through a raw TCP socket
+    (no line settings at all); on an RFC 2217 port, a `stageemu://` URL and a real port they do."""
+    port = config.getoption("--port")
+    if not port or port.startswith("socket://"):
+        return False
+    return not os.path.realpath(port).startswith("/dev/pts/")
+
+
+#: the skip where they do not
+NO_PARITY = "needs a port that carries parity (an RFC 2217 transport, a stageemu:// URL or a real port)"
 
 
 class DaemonPool:
@@ -149,8 +191,27 @@ def daemon_pool(tmp_path_factory: pytest.TempPathFactory) -> Iterator[DaemonPool
     pool.stop()
 
 
+def profile_url(
+    port: str, profile: str, overrides: dict[str, Any] | None, tmp_path_factory: pytest.TempPathFactory
+) -> str | None:
+    """A `stageemu://` port is an emulator in this process, so every profile is at hand: `port` with
+    `profile` in place of its own (with `overrides`, a profile file extending it). None for any other
+    port: it has the one controller it has."""
+    parts = urlsplit(port)
+    if parts.scheme != SCHEME:
+        return None
+    host, query = profile, [(key, value) for key, value in parse_qsl(parts.query) if key != "profile"]
+    if overrides:
+        path = tmp_path_factory.mktemp("profile") / "profile.yaml"
+        path.write_text(json.dumps({"spec": 1, "extends": profile, **overrides}))
+        host, query = "", [("profile", str(path)), *query]
+    return f"{SCHEME}://{host}" + (f"?{urlencode(query)}" if query else "")
+
+
 @pytest.fixture
-def open_target(request: pytest.FixtureRequest, daemon_pool: DaemonPool) -> Iterator[Callable[..., Target]]:
+def open_target(
+    request: pytest.FixtureRequest, daemon_pool: DaemonPool, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[Callable[..., Target]]:
     """`open_target(profile, overrides=None, timing="realistic", dedicated=False) -> Target`."""
     real_port = request.config.getoption("--port")
     opened: list[Target] = []
@@ -167,11 +228,14 @@ def open_target(request: pytest.FixtureRequest, daemon_pool: DaemonPool) -> Iter
             family = request.config.getoption("--device")
             if loaded.family != family:
                 pytest.skip(f"test for {loaded.family}, port has {family}")
+            path = real_port
             if overrides or dedicated or profile != family:
-                pytest.skip(f"needs emulator profile {profile} {overrides or ''}")
+                path = None if dedicated else profile_url(real_port, profile, overrides, tmp_path_factory)
+                if path is None:
+                    pytest.skip(f"needs emulator profile {profile} {overrides or ''}")
             baud = request.config.getoption("--baud")
             aux = request.config.getoption("--aux-port")
-            target = Target(real_port, family, loaded, True, baud=baud, aux_path=aux)
+            target = Target(path, family, loaded, True, baud=baud, aux_path=aux)
         else:
             daemon = daemon_pool.get(profile, overrides, timing, dedicated)
             if dedicated:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 import time
 from typing import TYPE_CHECKING
 
@@ -10,6 +9,7 @@ import pytest
 import serial
 
 from protocols.mp285 import StatusBlock, Velocity
+from tests.conformance.conftest import NO_PARITY, carries_parity
 from tests.conformance.mp285.wire import (
     CHAR,
     CR,
@@ -141,12 +141,8 @@ def test_tv_004_parity_host_gets_a_frame_error(
     bit, 0, sits in the stop position) and its CR clean, so the device answers `31 0D`, which that
     host decodes as `00` (framing error) and `C3` (parity error). After the unknown `7A` the '1'
     replaces the pending '4'."""
-    port = request.config.getoption("--port")
-    if not port or os.path.realpath(port).startswith("/dev/pts/"):
-        pytest.skip(
-            "a pseudo-terminal cannot carry parity (the pty driver clears PARENB, so the emulator "
-            "would see an 8E1 host as 8N1, MP-4): needs an RFC 2217 transport or a real port"
-        )
+    if not carries_parity(request.config):
+        pytest.skip(NO_PARITY)  # a PTY host at 8E1 would be seen as 8N1 (MP-4)
     host = connect(open_target, parity=serial.PARITY_EVEN)
     host.exchange(hx(frame), hx("00 C3"))
 

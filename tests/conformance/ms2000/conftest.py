@@ -107,10 +107,11 @@ class Host:
         self.ask(f"W {axes}\r".encode(), (":A" + " 0" * len(cfg.motor_axes) + "\r\n").encode())
 
     def drain(self, quiet: float = 0.5) -> None:
-        """Discard whatever arrives until the line has been quiet for `quiet` seconds."""
+        """Discard whatever arrives until the line has been quiet for `quiet` seconds (a read of one
+        byte returns as it arrives; a longer one would wait out its timeout)."""
         with self._timeout(quiet):
-            while self.port.read(4096):
-                pass
+            while self.port.read(1):
+                self.port.read(self.port.in_waiting)
 
     def silent(self, seconds: float = SILENCE_S) -> None:
         """Nothing arrives for `seconds` (a read that times out; also how the suite waits)."""

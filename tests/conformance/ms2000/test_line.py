@@ -6,7 +6,9 @@ import os
 from collections.abc import Callable
 
 import pytest
+import serial
 
+from tests.conformance.conftest import NO_PARITY, carries_parity
 from tests.conformance.ms2000.conftest import ACK, SILENT, VERSION, Host
 
 
@@ -57,6 +59,21 @@ def test_tv_120_data_bits_and_parity(ms: Host) -> None:
     ms.input("host_line", baud=9600, data_bits=7, parity="even")
     ms.run([(b"V\r", b""), SILENT])
     ms.input("host_line", baud=9600, data_bits=8, parity="none")
+    ms.ask(b"V\r", VERSION)
+
+
+def test_tv_120_data_bits_and_parity_on_the_wire(
+    request: pytest.FixtureRequest, connect: Callable[..., Host]
+) -> None:
+    """TV-120 (MS-1, MS-4) with the host's own port at 7E1 instead of the control input, where the
+    port carries data bits and parity (as TV-4 of the MP-285): the host gets nothing; back at 8N1
+    it is understood."""
+    if not carries_parity(request.config):
+        pytest.skip(NO_PARITY)  # on the emulator's PTY test_tv_120_data_bits_and_parity declares them
+    ms = connect()
+    ms.port.bytesize, ms.port.parity = serial.SEVENBITS, serial.PARITY_EVEN
+    ms.run([(b"V\r", b""), SILENT])
+    ms.port.bytesize, ms.port.parity = serial.EIGHTBITS, serial.PARITY_NONE
     ms.ask(b"V\r", VERSION)
 
 
