@@ -149,12 +149,10 @@ class DaemonPool:
         self._workdir = workdir
         self._daemons: dict[str, RunningDaemon] = {}
 
-    def get(
-        self, profile: str, overrides: dict[str, Any] | None, timing: str, dedicated: bool
-    ) -> RunningDaemon:
+    def get(self, profile: str, overrides: dict[str, Any] | None, timing: str) -> RunningDaemon:
         key = json.dumps([profile, overrides, timing], sort_keys=True)
-        if dedicated or key not in self._daemons:
-            workdir = self._workdir / f"d{len(self._daemons)}-{'x' if dedicated else ''}{abs(hash(key))}"
+        if key not in self._daemons:
+            workdir = self._workdir / f"d{len(self._daemons)}-{abs(hash(key))}"
             workdir.mkdir(parents=True, exist_ok=True)
             rig = workdir / "rig.yaml"
             channels = channels_of(load_profile(profile, overrides=overrides))
@@ -173,10 +171,7 @@ class DaemonPool:
                     }
                 )
             )
-            daemon = start_daemon(workdir, [str(rig)], expect_ports=len(channels))
-            if dedicated:
-                return daemon
-            self._daemons[key] = daemon
+            self._daemons[key] = start_daemon(workdir, [str(rig)], expect_ports=len(channels))
         return self._daemons[key]
 
     def stop(self) -> None:
@@ -212,34 +207,26 @@ def profile_url(
 def open_target(
     request: pytest.FixtureRequest, daemon_pool: DaemonPool, tmp_path_factory: pytest.TempPathFactory
 ) -> Iterator[Callable[..., Target]]:
-    """`open_target(profile, overrides=None, timing="realistic", dedicated=False) -> Target`."""
+    """`open_target(profile, overrides=None, timing="realistic") -> Target`."""
     real_port = request.config.getoption("--port")
     opened: list[Target] = []
-    dedicated_daemons: list[RunningDaemon] = []
 
-    def factory(
-        profile: str,
-        overrides: dict[str, Any] | None = None,
-        timing: str = "realistic",
-        dedicated: bool = False,
-    ) -> Target:
+    def factory(profile: str, overrides: dict[str, Any] | None = None, timing: str = "realistic") -> Target:
         loaded = load_profile(profile, overrides=overrides)
         if real_port:
             family = request.config.getoption("--device")
             if loaded.family != family:
                 pytest.skip(f"test for {loaded.family}, port has {family}")
             path = real_port
-            if overrides or dedicated or profile != family:
-                path = None if dedicated else profile_url(real_port, profile, overrides, tmp_path_factory)
+            if overrides or profile != family:
+                path = profile_url(real_port, profile, overrides, tmp_path_factory)
                 if path is None:
                     pytest.skip(f"needs emulator profile {profile} {overrides or ''}")
             baud = request.config.getoption("--baud")
             aux = request.config.getoption("--aux-port")
             target = Target(path, family, loaded, True, baud=baud, aux_path=aux)
         else:
-            daemon = daemon_pool.get(profile, overrides, timing, dedicated)
-            if dedicated:
-                dedicated_daemons.append(daemon)
+            daemon = daemon_pool.get(profile, overrides, timing)
             control = daemon.control()
             control.request({"op": "clock", "scale": 1.0})
             control.resume()
@@ -253,5 +240,3 @@ def open_target(
     yield factory
     for target in opened:
         target.close()
-    for daemon in dedicated_daemons:
-        daemon.stop()

@@ -122,7 +122,7 @@ def test_tv_003_mismatch_is_logged_once(
 ) -> None:
     """TV-3 (MP-4, MP-5): one warning naming device, port, both settings and the knob in force, once
     a byte crosses the line; the traffic that follows logs nothing more."""
-    log = DaemonLog(daemon_pool.get("mp285", None, "realistic", False))
+    log = DaemonLog(daemon_pool.get("mp285", None, "realistic"))
     log.drain()
     host = connect(open_target, **settings)
     host.send(GET_POSITION)
