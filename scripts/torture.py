@@ -3,7 +3,8 @@ when a bound is exceeded (`make soak`; short forms of each attack run in `make t
 
     python scripts/torture.py [--quick] [--only ATTACK ...] [--examples N] [--json FILE]
 
-Attacks: flood (random bytes at full speed into every port), cycles (open/close every port),
+Attacks: flood (random bytes at full speed into every port), netflood (the same from a TCP and an
+RFC 2217 client that never reads), cycles (open/close every port),
 kill (kill -9 during `SS Z`, restart), subscriber (control client that never reads), signals,
 profiles (the hostile-profile corpus through `stage-emu validate`), fuzz (hypothesis examples per
 protocol model), modules (hypothesis examples per MS2000 module-command property and build).
@@ -110,6 +111,7 @@ def plan(args: argparse.Namespace, work: Path) -> dict[str, Callable[[], Outcome
     quick = args.quick
     return {
         "flood": lambda: attacks.flood(work / "flood", seconds=5 if quick else 60),
+        "netflood": lambda: attacks.network_flood(work / "netflood", seconds=5 if quick else 60),
         "cycles": lambda: attacks.open_close(work / "cycles", cycles=300 if quick else 10_000),
         "kill": lambda: kill(work / "kill", cycles=10 if quick else 1000),
         "subscriber": lambda: attacks.slow_subscriber(work / "subscriber", seconds=5 if quick else 60),

@@ -8,11 +8,13 @@ use after; a subscriber that never reads costs a bounded amount of memory.
 
 from __future__ import annotations
 
+import json
 import multiprocessing
 import os
 import random
 import select
 import signal
+import socket
 import struct
 import termios
 import time
@@ -121,6 +123,105 @@ def flood(workdir: Path, seconds: float = 60.0, flooded: int = 6, idle_trips: in
         daemon.stop()
     out.bound(daemon.proc.returncode == 0, "daemon did not exit 0")
     return out
+
+
+def _network_flood(urls: list[str], seconds: float, seed: int, counter: Any) -> None:
+    """Child process: connect to every `tcp://` or `rfc2217://` port and write random bytes at full
+    speed, never reading (telnet's IAC escaped on RFC 2217, so every byte is data)."""
+    chunk = random.Random(seed).randbytes(4096)
+    socks: dict[socket.socket, bytes] = {}
+    for url in urls:
+        host, port = url.split("://", 1)[1].rsplit(":", 1)
+        sock = socket.create_connection((host, int(port)))
+        sock.setblocking(False)
+        socks[sock] = chunk.replace(b"\xff", b"\xff\xff") if url.startswith("rfc2217") else chunk
+    end = time.monotonic() + seconds
+    written = 0
+    while (left := end - time.monotonic()) > 0:
+        _, ready, _ = select.select([], list(socks), [], left)
+        for sock in ready:
+            try:
+                written += sock.send(socks[sock])
+            except (BlockingIOError, ConnectionError):
+                continue
+    counter.value = written
+    for sock in socks:
+        sock.close()
+
+
+def network_flood(workdir: Path, seconds: float = 60.0, idle_trips: int = 300) -> Outcome:
+    """Random bytes at full speed into a TCP and an RFC 2217 port (an MS2000 and an MP-285 at 9600
+    baud, realistic timing) by a client that never reads, while a host does `W X` round trips on a
+    PTY port of the same daemon; afterwards each network port serves a new client."""
+    out = Outcome("network flood: a TCP and an RFC 2217 client writing at full speed, never reading")
+    network = [("tcp0", "ms2000", "tcp"), ("rfc0", "mp285", "rfc2217")]
+    rig = {
+        "spec": 1,
+        "devices": [{"name": MEASURED, "profile": "ms2000", "ports": [{"timing": "realistic"}]}]
+        + [
+            {
+                "name": name,
+                "profile": profile,
+                "ports": [{"transport": kind, "port": 0, "timing": "realistic"}],
+            }
+            for name, profile, kind in network
+        ],
+    }
+    workdir.mkdir(parents=True, exist_ok=True)
+    (workdir / "rig.yaml").write_text(json.dumps(rig))
+    daemon = start_daemon(workdir, [str(workdir / "rig.yaml")], expect_ports=1 + len(network))
+    try:
+        pid = daemon.proc.pid
+        urls = [daemon.port(name) for name, _, _ in network]
+        with serial.Serial(daemon.port(MEASURED), 9600, timeout=5) as port:
+            idle = round_trips(port, *W_X, count=idle_trips)
+            before = rss_mb(pid)
+            counter = multiprocessing.Value("q", 0)
+            attacker = multiprocessing.Process(target=_network_flood, args=(urls, seconds, 2027, counter))
+            attacker.start()
+            busy = round_trips(port, *W_X, count=idle_trips, until=time.monotonic() + seconds)
+            attacker.join()
+            after = rss_mb(pid)
+            still = round_trips(port, *W_X, count=10)
+        answers = [
+            _answer_after_flood(url, profile) for url, (_, profile, _) in zip(urls, network, strict=True)
+        ]
+        out.figures.update(
+            seconds=seconds,
+            bytes_accepted=counter.value,
+            rss_before_mb=before,
+            rss_after_mb=after,
+            idle_p99_ms=idle.p99,
+            flood_p99_ms=busy.p99,
+            p99_ratio=busy.p99 / idle.p99,
+        )
+        # the wires' 960 characters/s, plus what socket buffers absorb (a few MiB a connection)
+        out.bound(
+            counter.value < len(network) * (seconds * 960 + (16 << 20)), "writes not held to the wire rate"
+        )
+        out.bound(after - before < RSS_GROWTH_MB, f"RSS grew by >= {RSS_GROWTH_MB} MB")
+        out.bound(busy.p99 <= P99_RATIO * idle.p99, f"other port's p99 > {P99_RATIO}x idle")
+        out.bound(bool(still.samples), "measured port stopped answering")
+        out.bound(all(answers), "a network port did not serve a new client after the flood")
+    finally:
+        daemon.stop()
+    out.bound(daemon.proc.returncode == 0, "daemon did not exit 0")
+    return out
+
+
+def _answer_after_flood(url: str, profile: str) -> bool:
+    """A new client on the port gets a well-formed answer: after the random bytes the device may be
+    mid-frame or mid-line, so a terminator goes first, then a query whose reply shape is known."""
+    request, length, ending = (b"c\r", 13, b"\r") if profile == "mp285" else (b"W X\r", None, b"\r\n")
+    with serial.serial_for_url(url, 9600, timeout=2) as port:
+        for _ in range(5):
+            port.write(b"\r")
+            port.read(64)  # whatever the terminator set off
+            port.write(request)
+            got = port.read(length) if length else port.read_until(ending)
+            if got.endswith(ending) and (length is None or len(got) == length):
+                return True
+    return False
 
 
 def open_close(workdir: Path, cycles: int = 10_000) -> Outcome:

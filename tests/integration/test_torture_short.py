@@ -18,6 +18,13 @@ def test_flood_of_random_bytes_is_held_to_the_wire_rate(tmp_path: Path) -> None:
     assert out.figures["rss_after_mb"] - out.figures["rss_before_mb"] < attacks.RSS_GROWTH_MB
 
 
+def test_network_clients_flooding_without_reading_are_held_to_the_wire_rate(tmp_path: Path) -> None:
+    out = attacks.network_flood(tmp_path, seconds=3, idle_trips=50)
+    timing = {f"other port's p99 > {attacks.P99_RATIO}x idle"}
+    assert set(out.exceeded) <= timing, (out.exceeded, out.figures)
+    assert out.figures["bytes_accepted"] > 0, out.figures
+
+
 def test_open_close_cycles_leak_nothing(tmp_path: Path) -> None:
     out = attacks.open_close(tmp_path, cycles=150)
     assert out.figures["fds_after"] == out.figures["fds_before"], out.figures

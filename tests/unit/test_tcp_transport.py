@@ -11,7 +11,13 @@ import pytest
 
 from emulator.device import HostLine
 from emulator.transports.pty import OUTPUT_LIMIT, PortError
-from emulator.transports.tcp import TcpTransport
+from emulator.transports.tcp import (
+    KEEPALIVE_COUNT,
+    KEEPALIVE_IDLE_S,
+    KEEPALIVE_INTERVAL_S,
+    USER_TIMEOUT_MS,
+    TcpTransport,
+)
 from tests.unit.test_pty_flow import Sink, until
 
 
@@ -174,5 +180,29 @@ def test_an_address_in_use_is_one_clear_error() -> None:
             with pytest.raises(PortError, match=rf"tcp port 127\.0\.0\.1:{port}: cannot listen: .*in use"):
                 transport.open(HostSink(None))
             transport.close()  # nothing was left half-created
+
+    asyncio.run(scenario())
+
+
+def test_every_connection_is_set_up_to_find_a_silently_dead_peer() -> None:
+    """A half-open connection (the peer's machine vanished: no FIN, no RST) would hold the port for
+    ever; keepalive probes (idle) and a user timeout (unacknowledged output) make the kernel end it,
+    which the transport then sees as a hang-up. Loopback cannot lose a peer, so the settings are
+    what is checked."""
+
+    async def scenario() -> None:
+        sink = HostSink(None)
+        transport, port = serve(sink)
+        _, writer = await connect(port)
+        await until(sink, lambda: sink.hosts == [HostLine()])
+        conn = transport._conn
+        assert conn is not None
+        assert conn.getsockopt(socket.SOL_SOCKET, socket.SO_KEEPALIVE) == 1
+        assert conn.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPIDLE) == KEEPALIVE_IDLE_S
+        assert conn.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPINTVL) == KEEPALIVE_INTERVAL_S
+        assert conn.getsockopt(socket.IPPROTO_TCP, socket.TCP_KEEPCNT) == KEEPALIVE_COUNT
+        assert conn.getsockopt(socket.IPPROTO_TCP, socket.TCP_USER_TIMEOUT) == USER_TIMEOUT_MS
+        writer.close()
+        transport.close()
 
     asyncio.run(scenario())
