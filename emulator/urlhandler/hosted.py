@@ -25,7 +25,7 @@ from emulator import registry
 from emulator.clock import ScaledClock
 from emulator.device import MAIN, HostLine, HostServices
 from emulator.profile import ProfileError, load_profile
-from emulator.runner import RELEASE_EARLY_S, DeviceRunner
+from emulator.runner import DeviceRunner
 from emulator.transports.inprocess import InProcessTransport
 from emulator.urlhandler.url import UrlOptions
 
@@ -197,14 +197,7 @@ class HostedDevice:
     def _until_next_due(self) -> float | None:
         """Wall seconds until the model's next event or the next paced byte (output released as
         early as the runner releases it), None when nothing is scheduled."""
-        early = self.clock.device_span(RELEASE_EARLY_S)
-        times = [self.runner.device.next_deadline()]
-        for channel in self.runner.channels.values():
-            out = channel.to_host.next_due()
-            times.append(None if out is None else out - early)
-            times.append(channel.from_host.next_due())
-        due = min((t for t in times if t is not None), default=None)
-        return None if due is None else self.clock.wall_delay(due)
+        return self.runner.wall_until_due()
 
 
 def _sooner(first: Deadline, second: Deadline) -> float | None:
