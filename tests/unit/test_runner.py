@@ -373,8 +373,9 @@ def test_fault_parameters_are_checked(fault: str, params: dict, message: str) ->
 
 
 def test_paced_output_is_released_half_a_millisecond_early_on_a_running_clock() -> None:
-    """The loop sleeps in whole milliseconds, so each paced byte is released up to RELEASE_EARLY_S
-    before its instant (centred on it) rather than up to 1 ms after; a manual clock is exact."""
+    """Without a timer of its own (pumped by its host, as the in-process URL does, or on the loop's
+    millisecond timers) each paced byte is released up to RELEASE_EARLY_S before its instant
+    (centred on it) rather than up to 1 ms after; a manual clock is exact."""
     wall = [100.0]
     clock = ScaledClock(1.0, wall=lambda: wall[0])
     profile = load_profile(PROBE)
