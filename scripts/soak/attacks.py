@@ -19,6 +19,7 @@ import struct
 import termios
 import time
 import tty
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -26,7 +27,7 @@ from typing import Any
 import serial
 
 from emulator.launcher import RunningDaemon, start_daemon, write_rig
-from scripts.soak.probes import cpu_percent, fd_count, round_trips, rss_mb, settle
+from scripts.soak.probes import Latencies, cpu_percent, fd_count, round_trips, rss_mb, settle
 
 MEASURED = "measured"
 W_X = (b"W X\r", b":A 0\r\n")
@@ -55,6 +56,54 @@ class Outcome:
 def _start(workdir: Path, devices: list[tuple[str, str]], timing: str, *extra: str) -> RunningDaemon:
     rig = write_rig(workdir, devices, timing)
     return start_daemon(workdir, [str(rig), *extra], expect_ports=len(devices))
+
+
+@dataclass
+class _Siege:
+    """A host's `W X` round trips on a neighbour port before, during and after an attack."""
+
+    idle: Latencies
+    busy: Latencies
+    still: Latencies
+    rss_before_mb: float
+    rss_after_mb: float
+    #: bytes the attacker got the daemon (and the kernel buffers in front of it) to take
+    accepted: int
+
+    def figures(self) -> dict[str, Any]:
+        return {
+            "bytes_accepted": self.accepted,
+            "rss_before_mb": self.rss_before_mb,
+            "rss_after_mb": self.rss_after_mb,
+            "idle_p99_ms": self.idle.p99,
+            "flood_p99_ms": self.busy.p99,
+            "p99_ratio": self.busy.p99 / self.idle.p99,
+        }
+
+    def bound(self, out: Outcome) -> None:
+        growth = self.rss_after_mb - self.rss_before_mb
+        out.bound(growth < RSS_GROWTH_MB, f"RSS grew by >= {RSS_GROWTH_MB} MB")
+        out.bound(self.busy.p99 <= P99_RATIO * self.idle.p99, f"other port's p99 > {P99_RATIO}x idle")
+        out.bound(bool(self.still.samples), "measured port stopped answering")
+
+
+def _siege(
+    daemon: RunningDaemon, attack: Callable[..., None], targets: list[str], seconds: float, idle_trips: int
+) -> _Siege:
+    """Round trips on the MEASURED port while `attack(targets, seconds, seed, counter)` runs in a
+    child process."""
+    pid = daemon.proc.pid
+    with serial.Serial(daemon.port(MEASURED), 9600, timeout=5) as port:
+        idle = round_trips(port, *W_X, count=idle_trips)
+        before = rss_mb(pid)
+        counter = multiprocessing.Value("q", 0)
+        attacker = multiprocessing.Process(target=attack, args=(targets, seconds, 2026, counter))
+        attacker.start()
+        busy = round_trips(port, *W_X, count=idle_trips, until=time.monotonic() + seconds)
+        attacker.join()
+        after = rss_mb(pid)
+        still = round_trips(port, *W_X, count=10)
+    return _Siege(idle, busy, still, before, after, counter.value)
 
 
 def _flood(paths: list[str], seconds: float, seed: int, counter: Any) -> None:
@@ -90,35 +139,18 @@ def flood(workdir: Path, seconds: float = 60.0, flooded: int = 6, idle_trips: in
     devices = [(MEASURED, "ms2000")] + [(f"flood{i}", "ms2000" if i % 2 else "mp285") for i in range(flooded)]
     daemon = _start(workdir, devices, "realistic")
     try:
-        pid = daemon.proc.pid
-        with serial.Serial(daemon.port(MEASURED), 9600, timeout=5) as port:
-            idle = round_trips(port, *W_X, count=idle_trips)
-            before = rss_mb(pid)
-            counter = multiprocessing.Value("q", 0)
-            paths = [daemon.port(name) for name, _ in devices[1:]]
-            attacker = multiprocessing.Process(target=_flood, args=(paths, seconds, 2026, counter))
-            attacker.start()
-            busy = round_trips(port, *W_X, count=idle_trips, until=time.monotonic() + seconds)
-            attacker.join()
-            after = rss_mb(pid)
-            still = round_trips(port, *W_X, count=10)
+        paths = [daemon.port(name) for name, _ in devices[1:]]
+        siege = _siege(daemon, _flood, paths, seconds, idle_trips)
         out.figures.update(
             ports=flooded,
             seconds=seconds,
-            bytes_accepted=counter.value,
-            rss_before_mb=before,
-            rss_after_mb=after,
-            idle_p99_ms=idle.p99,
-            flood_p99_ms=busy.p99,
-            p99_ratio=busy.p99 / idle.p99,
-            cpu_after_percent=cpu_percent(pid, 2.0),
+            **siege.figures(),
+            cpu_after_percent=cpu_percent(daemon.proc.pid, 2.0),
         )
         # what the wires carry at 960 characters/s, plus what kernel buffers absorb (< 1 MiB a port)
         wire = flooded * (seconds * 960 + (1 << 20))
-        out.bound(counter.value < wire, "host writes are not held to the wire rate")
-        out.bound(after - before < RSS_GROWTH_MB, f"RSS grew by >= {RSS_GROWTH_MB} MB")
-        out.bound(busy.p99 <= P99_RATIO * idle.p99, f"other port's p99 > {P99_RATIO}x idle")
-        out.bound(bool(still.samples), "measured port stopped answering")
+        out.bound(siege.accepted < wire, "host writes are not held to the wire rate")
+        siege.bound(out)
     finally:
         daemon.stop()
     out.bound(daemon.proc.returncode == 0, "daemon did not exit 0")
@@ -171,37 +203,16 @@ def network_flood(workdir: Path, seconds: float = 60.0, idle_trips: int = 300) -
     (workdir / "rig.yaml").write_text(json.dumps(rig))
     daemon = start_daemon(workdir, [str(workdir / "rig.yaml")], expect_ports=1 + len(network))
     try:
-        pid = daemon.proc.pid
         urls = [daemon.port(name) for name, _, _ in network]
-        with serial.Serial(daemon.port(MEASURED), 9600, timeout=5) as port:
-            idle = round_trips(port, *W_X, count=idle_trips)
-            before = rss_mb(pid)
-            counter = multiprocessing.Value("q", 0)
-            attacker = multiprocessing.Process(target=_network_flood, args=(urls, seconds, 2027, counter))
-            attacker.start()
-            busy = round_trips(port, *W_X, count=idle_trips, until=time.monotonic() + seconds)
-            attacker.join()
-            after = rss_mb(pid)
-            still = round_trips(port, *W_X, count=10)
+        siege = _siege(daemon, _network_flood, urls, seconds, idle_trips)
         answers = [
             _answer_after_flood(url, profile) for url, (_, profile, _) in zip(urls, network, strict=True)
         ]
-        out.figures.update(
-            seconds=seconds,
-            bytes_accepted=counter.value,
-            rss_before_mb=before,
-            rss_after_mb=after,
-            idle_p99_ms=idle.p99,
-            flood_p99_ms=busy.p99,
-            p99_ratio=busy.p99 / idle.p99,
-        )
+        out.figures.update(seconds=seconds, **siege.figures())
         # the wires' 960 characters/s, plus what socket buffers absorb (a few MiB a connection)
-        out.bound(
-            counter.value < len(network) * (seconds * 960 + (16 << 20)), "writes not held to the wire rate"
-        )
-        out.bound(after - before < RSS_GROWTH_MB, f"RSS grew by >= {RSS_GROWTH_MB} MB")
-        out.bound(busy.p99 <= P99_RATIO * idle.p99, f"other port's p99 > {P99_RATIO}x idle")
-        out.bound(bool(still.samples), "measured port stopped answering")
+        wire = len(network) * (seconds * 960 + (16 << 20))
+        out.bound(siege.accepted < wire, "writes not held to the wire rate")
+        siege.bound(out)
         out.bound(all(answers), "a network port did not serve a new client after the flood")
     finally:
         daemon.stop()
