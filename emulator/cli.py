@@ -12,6 +12,7 @@ from typing import Any
 import click
 
 from emulator import registry
+from emulator.cli_common import connect, fail
 from emulator.cli_gcode import gcode
 from emulator.cli_plot import plot
 from emulator.cli_session import proxy, replay_command
@@ -32,17 +33,12 @@ from emulator.profile import (
     resolve_reference,
 )
 from emulator.rig import load_rig, rig_from_profiles
-from emulator.runtime import SetupError, runtime_dir
+from emulator.runtime import SetupError
 from emulator.schema import DerivedDefault, plain
 from emulator.transports.pty import PortError
 from emulator.yamlsource import SourceError, read_source
 
 DEFAULT_RIG = "rig.yaml"
-
-
-def _fail(message: str) -> None:
-    click.echo(f"stage-emu: {message}", err=True)
-    sys.exit(1)
 
 
 class CheckedFloat(click.ParamType):
@@ -150,12 +146,12 @@ def serve(
         level=logging.INFO if verbose else logging.WARNING, format="stage-emu: %(message)s", stream=sys.stderr
     )
     if rig is not None and profiles:
-        _fail("give either a rig file or --profile options, not both")
+        fail("give either a rig file or --profile options, not both")
     if tcp is not None and rfc2217 is not None:
-        _fail("give --tcp or --rfc2217, not both (a rig file can serve several ports)")
+        fail("give --tcp or --rfc2217, not both (a rig file can serve several ports)")
     network = ("tcp", tcp) if tcp is not None else ("rfc2217", rfc2217) if rfc2217 is not None else None
     if network is not None and not profiles:
-        _fail(f"--{network[0]} goes with --profile (in a rig file, give the port `transport: {network[0]}`)")
+        fail(f"--{network[0]} goes with --profile (in a rig file, give the port `transport: {network[0]}`)")
     try:
         if profiles:
             spec = rig_from_profiles(list(profiles), network)
@@ -164,9 +160,9 @@ def serve(
         options = DaemonOptions(timing, time_scale, ready_file, log_traffic, state_dir, control, link_dir)
         code = asyncio.run(Daemon(spec, options).run())
     except (SourceError, PortError, RequestError, SetupError) as exc:
-        _fail(str(exc))
+        fail(str(exc))
     except OSError as exc:  # anything else the system refused at start: one line, no traceback
-        _fail(f"{exc.filename + ': ' if exc.filename else ''}{exc.strerror or exc}")
+        fail(f"{exc.filename + ': ' if exc.filename else ''}{exc.strerror or exc}")
     sys.exit(code)
 
 
@@ -210,7 +206,7 @@ def describe(profile: str, as_json: bool) -> None:
     try:
         loaded = load_profile(profile)
     except ProfileError as exc:
-        _fail(_rig_hint(profile) or str(exc))
+        fail(_rig_hint(profile) or str(exc))
     rows = loaded.describe()
     if as_json:
         click.echo(json.dumps([row.__dict__ for row in rows], indent=2, default=str, ensure_ascii=False))
@@ -256,15 +252,7 @@ def ctl(ctx: click.Context, control: Path | None) -> None:
 
 
 def _client(ctx: click.Context) -> ControlClient:
-    try:
-        path = ctx.obj or runtime_dir() / "control.sock"
-    except SetupError as exc:
-        _fail(str(exc))
-    try:
-        return ControlClient(path)
-    except OSError as exc:
-        _fail(f"cannot reach the daemon at {path}: {exc.strerror or exc} (is `stage-emu serve` running?)")
-    raise AssertionError
+    return connect(ctx.obj)
 
 
 def _run(ctx: click.Context, request: dict[str, Any]) -> None:
@@ -272,7 +260,7 @@ def _run(ctx: click.Context, request: dict[str, Any]) -> None:
         try:
             result = client.request(request)
         except ControlFailure as exc:
-            _fail(str(exc))
+            fail(str(exc))
     click.echo(json.dumps(result, indent=2))
 
 
@@ -282,7 +270,7 @@ def _params(pairs: tuple[str, ...]) -> dict[str, Any]:
     for pair in pairs:
         key, sep, value = pair.partition("=")
         if not sep or not key:
-            _fail(f"expected key=value, got {pair!r}")
+            fail(f"expected key=value, got {pair!r}")
         try:
             params[key] = json.loads(value)
         except json.JSONDecodeError:
@@ -407,7 +395,7 @@ def ctl_watch(ctx: click.Context, device: str, traffic: bool) -> None:
         try:
             client.subscribe(device, traffic=traffic)
         except ControlFailure as exc:
-            _fail(str(exc))
+            fail(str(exc))
         try:
             for event in client.events(timeout=None):
                 click.echo(json.dumps(event))
@@ -425,9 +413,9 @@ def ctl_raw(ctx: click.Context, request: str) -> None:
     try:
         body = json.loads(request)
     except json.JSONDecodeError as exc:
-        _fail(f"not JSON: {exc}")
+        fail(f"not JSON: {exc}")
     if not isinstance(body, dict):
-        _fail("a request must be a JSON object")
+        fail("a request must be a JSON object")
     _run(ctx, body)
 
 

@@ -8,13 +8,12 @@ file and line, never a traceback.
 from __future__ import annotations
 
 import math
-import sys
 from pathlib import Path
-from typing import NoReturn
 
 import click
 import serial
 
+from emulator.cli_common import fail
 from protocols.clients import MS2000
 from protocols.clients.gcode import (
     ExecutionError,
@@ -27,11 +26,6 @@ from protocols.clients.gcode import (
 
 #: MS-TRACER-2: Tracer runs at 115200; the other rates MS-2 allows serve other personalities
 BAUDS = ("115200", "28800", "19200", "9600")
-
-
-def _fail(message: str) -> NoReturn:
-    click.echo(f"stage-emu: {message}", err=True)
-    sys.exit(1)
 
 
 class Positive(click.ParamType):
@@ -81,24 +75,24 @@ def gcode(
     try:
         text = file.read_text(encoding="utf-8")
     except FileNotFoundError:
-        _fail(f"{file}: does not exist")
+        fail(f"{file}: does not exist")
     except (OSError, UnicodeDecodeError) as exc:
-        _fail(f"{file}: cannot read it: {exc}")
+        fail(f"{file}: cannot read it: {exc}")
     try:
         if dry_run:
             for step in parse_program(text, xyz_scale=xyz_scale, speed_scale=speed_scale):
                 click.echo(str(step))
             return
         if port is None:
-            _fail("--port PATH is required (or --dry-run to only plan)")
+            fail("--port PATH is required (or --dry-run to only plan)")
         read_program(text)  # a malformed line is reported before the stage is touched
         _run(text, str(port), int(baud), timeout, xyz_scale, speed_scale, verbose)
     except GcodeError as exc:
-        _fail(f"{file}:{exc.line}: {exc.message}")
+        fail(f"{file}:{exc.line}: {exc.message}")
     except ExecutionError as exc:
-        _fail(f"{file}:{exc.line}: {exc.message}" if exc.line is not None else f"{port}: {exc.message}")
+        fail(f"{file}:{exc.line}: {exc.message}" if exc.line is not None else f"{port}: {exc.message}")
     except KeyboardInterrupt:
-        _fail("interrupted: a running program was halted and its TTL output switched off")
+        fail("interrupted: a running program was halted and its TTL output switched off")
 
 
 def _run(
@@ -107,7 +101,7 @@ def _run(
     try:
         stage = MS2000(port, baud, timeout)
     except (serial.SerialException, OSError) as exc:
-        _fail(f"{port}: cannot open the port: {exc}")
+        fail(f"{port}: cannot open the port: {exc}")
     with stage:
         executor = GcodeExecutor(stage)
         counts = executor.counts_per_mm()

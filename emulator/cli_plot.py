@@ -9,21 +9,16 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from typing import NoReturn
 
 import click
 
+from emulator.cli_common import fail
 from emulator.plot import LogError, read_records, session_from
 from emulator.plot_focus import Focus, focus_device, focus_of
 
 NEEDS_MATPLOTLIB = "stage-emu plot needs matplotlib: pip install 'stage-emu[plot]'"
 FORMATS = (".png", ".svg")
 VIEW_NAMES = ("xy", "xz", "yz", "xyz")
-
-
-def _fail(message: str) -> NoReturn:
-    click.echo(f"stage-emu: {message}", err=True)
-    sys.exit(1)
 
 
 @click.command("plot")
@@ -61,7 +56,7 @@ def plot(
     the focus error and its in-focus band (or AUTOFOCUS's focus value), CRISP's states and
     AUTOFOCUS's runs."""
     if output.suffix.lower() not in FORMATS:
-        _fail(f"{output}: the output must end in .png or .svg")
+        fail(f"{output}: the output must end in .png or .svg")
     try:
         import matplotlib
     except ImportError:
@@ -78,7 +73,7 @@ def plot(
             focus_of(traffic_log, records, device) if wanted else session_from(traffic_log, records, device)
         )
     except LogError as exc:
-        _fail(str(exc))
+        fail(str(exc))
     session = drawn.session if isinstance(drawn, Focus) else drawn
     try:
         if isinstance(drawn, Focus):
@@ -86,5 +81,5 @@ def plot(
         else:
             draw(drawn, view, output, title)
     except OSError as exc:
-        _fail(f"{output}: cannot write it: {exc.strerror or exc}")
+        fail(f"{output}: cannot write it: {exc.strerror or exc}")
     click.echo(f"{output}: {session.device}, {session.end - session.start:.2f} s of device time")

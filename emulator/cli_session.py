@@ -10,10 +10,10 @@ import re
 import sys
 from dataclasses import replace
 from pathlib import Path
-from typing import NoReturn
 
 import click
 
+from emulator.cli_common import fail
 from emulator.device import LineSettings
 from emulator.line import REALISTIC, TIMINGS
 from emulator.profile import ProfileError, load_profile
@@ -35,11 +35,6 @@ from emulator.transports.pty import PortError
 TESTS_DIR = Path("tests/conformance")
 TEST_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]*")
 BAUD = click.IntRange(50, 4_000_000)
-
-
-def _fail(message: str, code: int = 1) -> NoReturn:
-    click.echo(f"stage-emu: {message}", err=True)
-    sys.exit(code)
 
 
 @click.command("proxy")
@@ -81,11 +76,11 @@ def proxy(
     try:
         loaded = load_profile(name)
     except ProfileError as exc:
-        _fail(str(exc))
+        fail(str(exc))
     if loaded.family != family:
-        _fail(f"profile {name} is for the {loaded.family}, not the {family}")
+        fail(f"profile {name} is for the {loaded.family}, not the {family}")
     if record.exists() or record.is_symlink():
-        _fail(f"{record}: already exists; remove it or choose another file")
+        fail(f"{record}: already exists; remove it or choose another file")
     device = loaded.line
     line = LineSettings(
         baud=baud or device.baud,
@@ -100,13 +95,13 @@ def proxy(
         recorder = Proxy(ProxyOptions(real, family, name, line, link, record))
         asyncio.run(recorder.run())
     except (ProxyError, PortError, SessionError, SetupError) as exc:
-        _fail(str(exc))
+        fail(str(exc))
     except OSError as exc:
-        _fail(f"{exc.filename + ': ' if exc.filename else ''}{exc.strerror or exc}")
+        fail(f"{exc.filename + ': ' if exc.filename else ''}{exc.strerror or exc}")
     except KeyboardInterrupt:  # before the signal handlers are in place: nothing recorded yet
         sys.exit(130)
     if recorder.failure:
-        _fail(f"{recorder.failure} (the session so far is in {record})")
+        fail(f"{recorder.failure} (the session so far is in {record})")
     click.echo(f"stage-emu: {recorder.exchanges} exchanges recorded in {record}", err=True)
 
 
@@ -169,7 +164,7 @@ def replay_command(
         finally:
             port.close()
     except (SessionError, ReplayError) as exc:
-        _fail(str(exc), 2)
+        fail(str(exc), 2)
     for text in result.report():
         click.echo(text)
     timing_note = f"tolerance {tolerance_ms:g} ms" if options.timing else "timing not compared"
@@ -209,7 +204,7 @@ def _save(session: Session, path: Path, ok: bool) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         count = save_session(session, path)
     except (SessionError, OSError) as exc:
-        _fail(f"--save-test: {exc}", 2)
+        fail(f"--save-test: {exc}", 2)
     click.echo(f"saved as a conformance case: {path} ({count} exchanges)")
     if not ok:
         click.echo("(its replay differs: the case fails until the emulator matches the recording)")

@@ -11,17 +11,12 @@ import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import NoReturn
 
 import click
 
+from emulator.cli_common import fail
 from emulator.trace import EVENT_CHOICES, TraceNotes, TraceOptions, trace_lines
 from emulator.trace_reader import TraceError
-
-
-def _fail(message: str) -> NoReturn:
-    click.echo(f"stage-emu: {message}", err=True)
-    sys.exit(1)
 
 
 @contextmanager
@@ -65,7 +60,7 @@ def trace(traffic_log: Path, follow: bool, device: str | None, port: str | None,
         else:
             _echo_all(traffic_log, options, follow, stop, notes)
     except TraceError as exc:
-        _fail(str(exc))
+        fail(str(exc))
     except KeyboardInterrupt:  # Ctrl-C while reading a long log without --follow
         sys.exit(130)
     except BrokenPipeError:

@@ -9,11 +9,9 @@ daemon, or a daemon that goes away: one line, exit 1. Ctrl-C: exit 0.
 
 from __future__ import annotations
 
-import sys
 import time
 from collections.abc import Iterable
 from pathlib import Path
-from typing import NoReturn
 
 import click
 from rich.console import Console, Group, RenderableType
@@ -22,8 +20,8 @@ from rich.panel import Panel
 from rich.table import Table
 from rich.text import Text
 
+from emulator.cli_common import connect, fail
 from emulator.control import ControlClient, ControlFailure
-from emulator.runtime import SetupError, runtime_dir
 from emulator.trace import REPLY_WAIT_S
 from emulator.view import DeviceView, ExchangeRow, ViewState
 
@@ -35,11 +33,6 @@ COALESCE_S = 0.05
 COALESCE_MAX = 200
 #: how a flag is drawn (a flag not listed: bold)
 FLAG_STYLES = {"STRAY": "yellow", "UNSOLICITED": "cyan"}
-
-
-def _fail(message: str) -> NoReturn:
-    click.echo(f"stage-emu: {message}", err=True)
-    sys.exit(1)
 
 
 def full_refresh(client: ControlClient, state: ViewState, subscribed: set[str]) -> None:
@@ -133,24 +126,13 @@ def render(state: ViewState) -> RenderableType:
     return Group(*panels)
 
 
-def _connect(control: Path | None) -> ControlClient:
-    try:
-        path = control or runtime_dir() / "control.sock"
-    except SetupError as exc:
-        _fail(str(exc))
-    try:
-        return ControlClient(path)
-    except OSError as exc:
-        _fail(f"cannot reach the daemon at {path}: {exc.strerror or exc} (is `stage-emu serve` running?)")
-
-
 @click.command("view")
 @click.option("--control", type=click.Path(dir_okay=False, path_type=Path), help="Control socket path.")
 def view(control: Path | None) -> None:
     """Live view of a running daemon: each device's positions, busy state, LCD, TTL output, its ports'
     hosts and line settings, its last exchanges decoded, and its last events. Redraws on the
     daemon's events and traffic, and fully every 2 s for changes that push none. Ctrl-C exits."""
-    client = _connect(control)
+    client = connect(control)
     state = ViewState()
     subscribed: set[str] = set()
     try:
@@ -166,8 +148,8 @@ def view(control: Path | None) -> None:
     except KeyboardInterrupt:
         pass
     except ControlFailure as exc:
-        _fail(f"the daemon refused a request: {exc}")
+        fail(f"the daemon refused a request: {exc}")
     except (OSError, ValueError) as exc:  # closed socket, reset, garbled reply
-        _fail(f"lost the daemon: {exc}")
+        fail(f"lost the daemon: {exc}")
     finally:
         client.close()

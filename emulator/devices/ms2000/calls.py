@@ -108,6 +108,17 @@ def within(low: float, high: float, *, integer: bool = False) -> Callable[[float
     return check
 
 
+def whole(low: int, high: int) -> Callable[[float], float]:
+    """A check accepting whole numbers low…high; a fraction is out of range, not rounded."""
+
+    def check(value: float) -> float:
+        if value != int(value) or not low <= value <= high:
+            raise CommandError(ErrorCode.OUT_OF_RANGE)
+        return value
+
+    return check
+
+
 def one_of(*allowed: float) -> Callable[[float], float]:
     def check(value: float) -> float:
         if value not in allowed:

@@ -18,16 +18,16 @@ from typing import TYPE_CHECKING, Any
 from emulator.devices.ms2000.buttons import LONG, NORMAL
 from emulator.devices.ms2000.calls import (
     Call,
-    CommandError,
     Param,
     Reply,
     run_settings,
+    whole,
     within,
 )
 from emulator.devices.ms2000.modules import Handler, Module, register
 from emulator.devices.ms2000.modules.scan_roles import FAST, SCAN_MODULE, SERPENTINE, SLOW, shared_roles
 from emulator.schema import Bool, Field
-from protocols.ms2000 import ErrorCode, Fmt, Kind
+from protocols.ms2000 import Fmt, Kind
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
@@ -72,15 +72,6 @@ class CellOrder:
         j = row + 1
         i = self.columns - offset if self.serpentine and j % 2 == 0 else offset + 1
         return i, j
-
-
-def _whole(low: int, high: int) -> Callable[[float], float]:
-    def check(value: float) -> float:
-        if value != int(value) or not low <= value <= high:
-            raise CommandError(ErrorCode.OUT_OF_RANGE)
-        return value
-
-    return check
 
 
 @register
@@ -180,8 +171,8 @@ class ArrayModule(Module):
             return lambda v: grid.__setitem__(key, v)
 
         params = {
-            "X": Param(lambda: grid["columns"], setter("columns"), _whole(1, MAX_CELLS_PER_SIDE)),
-            "Y": Param(lambda: grid["rows"], setter("rows"), _whole(1, MAX_CELLS_PER_SIDE)),
+            "X": Param(lambda: grid["columns"], setter("columns"), whole(1, MAX_CELLS_PER_SIDE)),
+            "Y": Param(lambda: grid["rows"], setter("rows"), whole(1, MAX_CELLS_PER_SIDE)),
             "Z": Param(lambda: grid["dx"], setter("dx"), fmt=Fmt.F6),
             "F": Param(lambda: grid["dy"], setter("dy"), fmt=Fmt.F6),
             "T": Param(lambda: grid["tilt"], setter("tilt"), within(-MAX_TILT_DEG, MAX_TILT_DEG), Fmt.F6),
@@ -213,12 +204,12 @@ class ArrayModule(Module):
             "X": Param(
                 lambda: self.cell[0],
                 lambda v: target.__setitem__(0, int(v)),
-                _whole(1, int(self.grid["columns"])),
+                whole(1, int(self.grid["columns"])),
             ),
             "Y": Param(
                 lambda: self.cell[1],
                 lambda v: target.__setitem__(1, int(v)),
-                _whole(1, int(self.grid["rows"])),
+                whole(1, int(self.grid["rows"])),
             ),
         }
         items = [i for i in call.items if i.kind is not Kind.NUMBER]

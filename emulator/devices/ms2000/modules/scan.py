@@ -20,7 +20,7 @@ from typing import TYPE_CHECKING, Any
 
 from emulator.device import ControlError
 from emulator.devices.ms2000.buttons import EXTRA, LONG
-from emulator.devices.ms2000.calls import Call, CommandError, Param, Reply, run_settings, within
+from emulator.devices.ms2000.calls import Call, CommandError, Param, Reply, run_settings, whole, within
 from emulator.devices.ms2000.modules import Handler, Module, register
 from emulator.devices.ms2000.modules.enc_int import COUNTING_MODE
 from emulator.devices.ms2000.modules.scan_plan import Leg, ScanArea, Sweep, plan
@@ -44,15 +44,6 @@ FACTORY_LINES: dict[str, float] = {"start": 0.0, "stop": 0.0, "lines": 1, "overs
 SCAN_ABORTED, PIXELS_WRONG = 86, 85  # MS-SCAN-6
 FN_SCAN = 8  # BE F function: scan start/stop (Appendix B)
 IDLE, STOPPING = "I", "P"  # MS-SCAN-7 (the moving states are in scan_plan.py)
-
-
-def _whole(low: int, high: int) -> Callable[[float], float]:
-    def check(value: float) -> float:
-        if value != int(value) or not low <= value <= high:
-            raise CommandError(ErrorCode.OUT_OF_RANGE)
-        return value
-
-    return check
 
 
 def _restored(factory: dict[str, float], data: Any) -> dict[str, float]:
@@ -171,8 +162,8 @@ class ScanModule(Module):
         params = {
             "X": Param(lambda: values["start"], setter("start"), fmt=Fmt.F6),
             "Y": Param(lambda: values["stop"], setter("stop"), fmt=Fmt.F6),
-            "Z": Param(lambda: values["divide"], setter("divide"), _whole(MIN_DIVIDE, MAX_COUNT)),
-            "F": Param(self.pixels, lambda v: pixels.append(int(v)), _whole(1, MAX_COUNT)),
+            "Z": Param(lambda: values["divide"], setter("divide"), whole(MIN_DIVIDE, MAX_COUNT)),
+            "F": Param(self.pixels, lambda v: pixels.append(int(v)), whole(1, MAX_COUNT)),
         }
         reply = run_settings(call, params, "XYZF", self.host.render(call.key), self.host.ack())
         if pixels:  # with the start and divide of the same command, whatever the item order
@@ -189,7 +180,7 @@ class ScanModule(Module):
         params = {
             "X": Param(lambda: values["start"], setter("start"), fmt=Fmt.F6),
             "Y": Param(lambda: values["stop"], setter("stop"), fmt=Fmt.F6),
-            "Z": Param(lambda: values["lines"], setter("lines"), _whole(1, MAX_COUNT)),
+            "Z": Param(lambda: values["lines"], setter("lines"), whole(1, MAX_COUNT)),
             "F": Param(lambda: values["overshoot"], setter("overshoot"), within(0, MAX_OVERSHOOT), Fmt.F6),
         }
         return run_settings(call, params, "XYZF", self.host.render(call.key), self.host.ack())
