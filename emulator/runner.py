@@ -20,9 +20,10 @@ from collections.abc import Callable
 from functools import partial
 from typing import Any
 
+from emulator import mismatch
 from emulator.clock import Clock
 from emulator.device import Device, Emission, HostLine
-from emulator.line import REALISTIC, mismatches, settings_char_time
+from emulator.line import REALISTIC, settings_char_time
 from emulator.port import CORRUPT_MASK, Channel, Faults, fault_params, unsent
 from emulator.trafficlog import LOG_ONLY, DeviceTraffic, TrafficLog
 from emulator.transports.base import Transport
@@ -104,6 +105,7 @@ class DeviceRunner:
             raise ValueError(f"{self.name}: channel {channel!r} already has a port")
         ch.transport = transport
         ch.timing = timing
+        self._refresh_pacing()  # before any step: `host_data` relies on it
         transport.open(_ChannelSink(self, ch))
 
     def watch_traffic(self, sink: Callable[[dict[str, Any]], None] | None) -> None:
@@ -141,8 +143,7 @@ class DeviceRunner:
         ch.stats.input_discarded += unheard
         ch.stats.dropping = False
         self._clear_wire(ch, "the host hung up")
-        ch.reported_mismatch = ch.pending_mismatch = ()
-        ch.checked_for = ()
+        mismatch.forget(ch)
         lost = f"; {unheard} bytes still on the wire discarded" if unheard else ""
         log.info("%s/%s: host detached%s", self.name, ch.name, lost)
         self._set_host(ch, None)
@@ -159,9 +160,24 @@ class DeviceRunner:
 
     def host_data(self, ch: Channel, data: bytes) -> None:
         # logged by the model once received (or by `_due_input` if a hung device hears nothing)
-        ch.from_host.push(self.clock.now(), data)  # even when hung: the bytes take their wire time
+        now = self.clock.now()
         if ch.pending_mismatch:
-            self._report_mismatch(ch)
+            mismatch.report(ch, self.device)
+        if (
+            ch.from_host.per_char == 0
+            and not ch.from_host
+            and self._traffic is None
+            and not ch.faults.hung
+            and not (self._actions and self._actions[0][0] <= now)
+        ):
+            # What `pump` would do with these bytes, without their round through the input pacer
+            # and the step's checks before the model: unpaced (pacing is current, every step ends
+            # by updating it), with nothing queued ahead of them, nothing to log and no fault
+            # expiry due first, they reach the device at once (the common case with fast timing).
+            self.device.receive(data, now, ch.name)
+            self._finish_step(now)
+            return
+        ch.from_host.push(now, data)  # even when hung: the bytes take their wire time
         self.pump()
 
     def input_discarded(self, ch: Channel, count: int) -> None:
@@ -212,21 +228,28 @@ class DeviceRunner:
             now = at_least
         if self._actions:
             self._run_actions(now)
-        self._refresh_pacing()
+        self._refresh_pacing()  # a host's or a reset's new settings pace what this step sends
         device = self.device
         for t, channel, data in self._due_input(now):
             device.receive(data, t, channel)
-        device.advance(now)
+        self._finish_step(now)
+        return now
+
+    def _finish_step(self, now: float) -> None:
+        """The rest of a step once the device has its input: it runs to `now`, what is due leaves,
+        and the runner's state follows what the step changed (pacing, mismatches, reading, the
+        timer)."""
+        self.device.advance(now)
         early = self.clock.device_span(self._early)
         self._collect_output(now + early)
         self._write_due(now + early)
         # what follows the write is off the round trip's path: the host is reading the reply by now
         if self._traffic is not None:
             self._traffic.flush()
+        self._refresh_pacing()  # the model's own changes pace the next step
         self._check_mismatch()
         self._resume_reading()
         self._arm_timer(early)
-        return now
 
     def _due_input(self, now: float) -> list[tuple[float, str, bytes]]:
         """Host bytes whose wire time has ended, merged across channels in time order; bytes that
@@ -327,7 +350,7 @@ class DeviceRunner:
             return len(data)
         dropped = ch.transport.write(data)
         if ch.pending_mismatch:
-            self._report_mismatch(ch)
+            mismatch.report(ch, self.device)
         if dropped:
             self._output_dropped(ch, dropped)
         elif ch.stats.dropping:
@@ -363,34 +386,7 @@ class DeviceRunner:
 
     def _check_mismatch(self) -> None:
         for ch in self.channels.values():
-            if ch.host is None:
-                continue
-            own = self.device.line_settings(ch.name)
-            if (ch.host, own) == ch.checked_for:
-                continue  # nothing changed since the last check (the common case, every pump)
-            ch.checked_for = (ch.host, own)
-            differing = mismatches(own, ch.host)
-            key = (tuple(differing), ch.host, own) if differing else ()
-            if not differing:
-                ch.reported_mismatch = ()
-            # warned about once a byte crosses at these settings (`_report_mismatch`): a host program
-            # that opens the port at its default speed and sets its own before writing is no mismatch
-            ch.pending_mismatch = key if key != ch.reported_mismatch else ()
-
-    def _report_mismatch(self, ch: Channel) -> None:
-        """Log the pending mismatch: a byte crossed the line while the settings differ."""
-        key, ch.pending_mismatch = ch.pending_mismatch, ()
-        ch.reported_mismatch = key
-        _, host, own = key
-        effect = self.device.mismatch_effect(host, ch.name)
-        log.warning(
-            "%s/%s: host uses %s, device expects %s%s",
-            self.name,
-            ch.name,
-            host.filled(own).describe(),
-            own.describe(),
-            f"; {effect}" if effect else "",
-        )
+            mismatch.check(ch, self.device.line_settings(ch.name))
 
     def _next_due(self, early: float) -> float | None:
         """The earliest of: the device's next event, a port's next paced byte (output released
@@ -444,8 +440,7 @@ class DeviceRunner:
         self.device.explain = self._traffic is not None
         for ch in self.channels.values():
             self._clear_wire(ch, "a factory reset")
-            ch.reported_mismatch = ch.pending_mismatch = ()
-            ch.checked_for = ()
+            mismatch.forget(ch)
             if ch.attached:
                 self.device.line_changed(ch.host, now, ch.name)
         self.pump()

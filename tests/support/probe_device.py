@@ -11,6 +11,7 @@ While explaining, each line is noted as a frame and each reply names its line.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from emulator import registry
@@ -26,6 +27,9 @@ from emulator.device import (
 )
 from emulator.profile import Config, Line, Profile, line_section
 from emulator.schema import Bool, Schema, Section, setting
+
+#: the probe's profile (tests/support/probe.yaml)
+PROBE_PROFILE = str(Path(__file__).with_name("probe.yaml"))
 
 LINE = line_section("ProbeLine", (1200, 2400, 4800, 9600, 19200, 115200), 9600, "T-1")
 
