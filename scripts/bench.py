@@ -4,7 +4,9 @@
 
 Groups, one module each under scripts/perf/:
   roundtrip   round trips (`--timing fast`, pyserial host) against a PTY floor that answers without
-              parsing, visits alternating: p50 ≤ 1.10 × floor, p99 ≤ 1.5 × floor
+              parsing, visits alternating: p50 ≤ 1.10 × floor, p99 ≤ 1.5 × floor; for reference,
+              the floor inside an asyncio loop and each exchange's cost in process (model alone,
+              model + runner) beside the 10 % of the floor's p50 the p50 target leaves
   throughput  64 busy ports of one daemon (MS2000 `W X`, MP-285 `c`): together ≥ 0.9 × one busy port
   idle        256 idle ports: daemon CPU 0 % (bound 1 %), RSS < 60 MB
   timing      `--timing realistic` at 9600 baud: reply bytes within 1 ms (p99) of the wire model,

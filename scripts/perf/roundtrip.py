@@ -28,6 +28,7 @@ import serial
 
 from emulator.launcher import RunningDaemon
 from protocols.mp285 import GetPosition, SetVelocity, encode_position
+from scripts.perf import inprocess
 from scripts.perf.common import (
     BenchError,
     Check,
@@ -148,6 +149,13 @@ def run(workdir: Path, visits: int, samples: int, move_samples: int) -> list[Res
     finally:
         daemon.stop()
     results.append(event_loop_share(W_X_Y, visits, samples))
+    fixed = [case for case in CASES if isinstance(case, Fixed)]
+    floors = {result.case: result.reference[0] for result in results}
+    results += inprocess.rows(
+        [(case.name, case.device, case.request, case.reply) for case in fixed],
+        {case.name: floors[f"round trip {case.name}"] for case in fixed},
+        visits * samples,
+    )
     return results
 
 
