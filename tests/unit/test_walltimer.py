@@ -14,7 +14,7 @@ from emulator.device import HostServices
 from emulator.profile import load_profile
 from emulator.registry import family
 from emulator.runner import DeviceRunner
-from emulator.walltimer import LOOP_TIMER_EARLY_S, LoopTimer, TimerFd, make_timer
+from emulator.walltimer import LOOP_TIMER_EARLY_S, TIMERFD_EARLY_S, LoopTimer, TimerFd, make_timer
 from tests.support import probe_device  # noqa: F401  (registers the probe family)
 
 PROBE = "tests/support/probe.yaml"
@@ -44,11 +44,11 @@ async def _fired_after(timer_kind: str, delay: float, *, rearm: float | None = N
         timer.close()
 
 
-def test_the_best_timer_on_linux_is_a_timerfd_that_needs_no_early_release() -> None:
+def test_the_best_timer_on_linux_is_a_timerfd_released_a_tenth_of_a_millisecond_early() -> None:
     async def check() -> None:
         timer = make_timer(asyncio.get_running_loop(), lambda: None)
         try:
-            assert isinstance(timer, TimerFd) and timer.early == 0.0
+            assert isinstance(timer, TimerFd) and timer.early == TIMERFD_EARLY_S == 0.0001
         finally:
             timer.close()
 
