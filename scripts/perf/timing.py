@@ -3,7 +3,10 @@
 The host opens each port with pyserial at the profile's baud (so the daemon paces at it), then reads
 the descriptor itself, select + os.read in a tight loop, stamping each byte with time.perf_counter
 when the read returns: a stamp includes the host's own read latency, never less. A request's stamp is
-taken just before its os.write, when its first character would start on a real wire.
+taken just before its os.write, when its first character would start on a real wire. The daemon
+runs on the least busy CPU and the host on another, as for round trips: left to the scheduler, the
+pair migrated between CPUs and the byte error's p99 ranged 0.6-1.4 ms from run to run (0.3-0.9 ms
+pinned).
 
 - Byte timing: MS2000 `W X`. Byte k of the reply is due at the end of the request's last character
   + the device's processing time (0: none is documented for it) + k character times (start, data,
@@ -40,7 +43,9 @@ from scripts.perf.common import (
     char_time,
     open_host,
     p50_p99,
+    placed,
     profile_values,
+    quietest_cpus,
     serve,
     trapezoid_s,
 )
@@ -62,12 +67,15 @@ MS2000_STEP_UNITS = 20_000
 def run(workdir: Path, requests: int, moves: int) -> list[Result]:
     ms2000, mp285 = profile_values("ms2000"), profile_values("mp285")
     daemon = serve(workdir, ["--profile", "ms2000", "--profile", "mp285", "--timing", "realistic"], 2)
+    cpus = quietest_cpus()
     try:
-        return [
-            byte_timing(daemon.port("ms2000"), ms2000, requests),
-            mp285_moves(daemon.port("mp285"), mp285, moves),
-            ms2000_moves(daemon.port("ms2000"), ms2000, moves),
-        ]
+        # as for round trips (roundtrip.py): the daemon on the least busy CPU, the host on another
+        with placed({daemon.proc.pid: {cpus[0]}, 0: {cpus[1 % len(cpus)]}}):
+            return [
+                byte_timing(daemon.port("ms2000"), ms2000, requests),
+                mp285_moves(daemon.port("mp285"), mp285, moves),
+                ms2000_moves(daemon.port("ms2000"), ms2000, moves),
+            ]
     finally:
         daemon.stop()
 
