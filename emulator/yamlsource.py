@@ -35,6 +35,8 @@ from emulator.schema import Path, path_text
 MAX_FILE_BYTES = 1 << 20
 MAX_NODES = 100_000
 MAX_DEPTH = 64
+#: how libyaml's parser words the refusal of nesting deeper than its own limit
+LIBYAML_TOO_DEEP = "exceeded maximum nesting depth"
 
 try:  # libyaml scans and parses several times faster; the composer stays in Python (limits)
     from yaml._yaml import CParser
@@ -223,6 +225,10 @@ def load_located(text: str, source: str, quote: bool = True) -> Located:
         mark = getattr(exc, "problem_mark", None)
         where = mark.line + 1 if mark is not None else 1
         problem = " ".join((getattr(exc, "problem", None) or str(exc)).split())
+        if problem == LIBYAML_TOO_DEEP:
+            # libyaml (PyYAML >= 6.0.4) stops at its own depth limit, far beyond ours, before our
+            # composer sees the nesting: the same refusal, in the same words
+            raise _too_deep(source, where) from None
         raise SourceError(f"{source}:{where}: not valid YAML" + (f": {problem}" if quote else "")) from None
 
 
