@@ -7,11 +7,9 @@ from pathlib import Path
 
 from click.testing import CliRunner
 
-import tests.support.probe_device  # noqa: F401  (registers the `probe` family)
 from emulator.cli import main
 from emulator.profile import bundled_dir, display_path
-
-PROBE = str(Path(__file__).parent.parent / "support" / "probe.yaml")
+from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)
 
 
 def run(*args: str) -> tuple[int, str, str]:

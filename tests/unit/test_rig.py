@@ -7,11 +7,9 @@ from pathlib import Path
 
 import pytest
 
-import tests.support.probe_device  # noqa: F401  (registers the `probe` family)
 from emulator.profile import ProfileError, bundled_dir
 from emulator.rig import load_rig, rig_from_profiles
-
-PROBE = str(Path(__file__).parent.parent / "support" / "probe.yaml")
+from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)
 
 
 def test_profile_options_name_devices_after_their_profile(tmp_path: Path) -> None:

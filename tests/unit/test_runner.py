@@ -9,7 +9,6 @@ from pathlib import Path
 
 import pytest
 
-import tests.support.probe_device  # noqa: F401  (registers the `probe` family)
 from emulator.clock import ManualClock, ScaledClock
 from emulator.device import HostServices, LineSettings
 from emulator.line import FAST, REALISTIC
@@ -18,8 +17,8 @@ from emulator.registry import family
 from emulator.runner import INPUT_BACKLOG, OUTPUT_BACKLOG, RELEASE_EARLY_S, DeviceRunner
 from emulator.trafficlog import TrafficLog
 from tests.support.memory_transport import MemoryTransport
+from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)
 
-PROBE = str(Path(__file__).parent.parent / "support" / "probe.yaml")
 CHAR = 10 / 9600
 HOST_9600 = LineSettings(9600, None, None, 1, False, False)
 

@@ -10,7 +10,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import tests.support.probe_device  # noqa: F401  (registers the `probe` family)
 from emulator.clock import ManualClock
 from emulator.device import HostServices, LineSettings
 from emulator.line import FAST, REALISTIC, char_time
@@ -20,8 +19,8 @@ from emulator.runner import DeviceRunner
 from emulator.trafficlog import TrafficLog
 from protocols import mp285
 from tests.support.memory_transport import MemoryTransport
+from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)
 
-PROBE = str(Path(__file__).parent.parent / "support" / "probe.yaml")
 CHAR = char_time(9600)
 AT_9600 = LineSettings(9600, None, None, 1, False, False)
 AT_19200 = LineSettings(19200, None, None, 1, False, False)

@@ -15,9 +15,7 @@ from emulator.profile import load_profile
 from emulator.registry import family
 from emulator.runner import DeviceRunner
 from emulator.walltimer import LOOP_TIMER_EARLY_S, TIMERFD_EARLY_S, LoopTimer, TimerFd, make_timer
-from tests.support import probe_device  # noqa: F401  (registers the probe family)
-
-PROBE = "tests/support/probe.yaml"
+from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)
 
 
 async def _fired_after(timer_kind: str, delay: float, *, rearm: float | None = None) -> tuple[float, int]:
