@@ -12,7 +12,7 @@ import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 
-from emulator.schema import finite_number
+from emulator.schema import finite_number, show_number
 
 #: Device seconds per wall second. Beyond these the model cannot keep up (above) or a device second
 #: lasts for hours (below); NaN or infinity would make every deadline "now" and spin the loop.
@@ -37,7 +37,8 @@ def _checked(value: float, what: str, low: float, high: float, unit: str) -> flo
     if not finite_number(value):
         raise ValueError(f"{what} must be a finite number, got {value!r}")
     if not low <= value <= high:
-        raise ValueError(f"{what} must be between {low:g} and {high:g}{unit}, got {value:g}")
+        bounds = f"between {show_number(low)} and {show_number(high)}{unit}"
+        raise ValueError(f"{what} must be {bounds}, got {show_number(value)}")
     return float(value)
 
 

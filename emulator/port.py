@@ -9,7 +9,7 @@ from typing import Any
 
 from emulator.device import HostLine
 from emulator.line import REALISTIC, Pacer
-from emulator.schema import finite_number
+from emulator.schema import finite_number, show_number
 from emulator.transports.base import Transport
 
 #: the value each corrupted byte is XORed with (`corrupt` fault)
@@ -119,6 +119,6 @@ def fault_params(fault: str, params: dict[str, Any]) -> dict[str, float]:
         if not finite_number(value) or not low <= value <= high:
             raise ValueError(f"{name} must be a number >= {low} and <= {high}, got {value!r}")
         if name == "count" and value != int(value):
-            raise ValueError(f"count must be a whole number, got {value:g}")
+            raise ValueError(f"count must be a whole number, got {show_number(value)}")
         values[name] = value
     return values

@@ -51,6 +51,11 @@ kept or a sink is set (`DeviceRunner.watch_traffic`); otherwise nothing is forma
 The log is a side channel: a disk that fills up or a file that cannot be written must never stop a
 device from answering. The first failure is logged once and traffic logging stops; SIGUSR1
 (`reopen`, as after log rotation) starts it again on a fresh file at the same path.
+
+The log is appended to, so it never lands in someone else's file: an existing regular file is taken
+only when it is empty or begins with a record (the first SNIFF_BYTES are read, never the whole file).
+Another file is refused untouched: one line at start-up, and at `reopen` one logged error, with
+logging off until the next SIGUSR1 (devices keep answering, as on a full disk).
 """
 
 from __future__ import annotations
@@ -59,6 +64,8 @@ import contextlib
 import json
 import logging
 import os
+import re
+import stat
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -83,6 +90,17 @@ LOG_ONLY = frozenset({MOVE, CRISP_SAMPLE, AF_SAMPLE})
 
 #: takes each `rx`/`tx` record (the log's JSON object) as it is written
 TrafficSink = Callable[[dict[str, Any]], None]
+
+#: how much of an existing file is read to tell a traffic log from any other file
+SNIFF_BYTES = 4096
+#: how every record begins (`traffic_entry`, `TrafficLog.event`: json.dumps keeps the key order);
+#: the first line may be longer than SNIFF_BYTES, so its head is what is checked
+_RECORD_HEAD = re.compile(rb'\{"t": -?[0-9][0-9.eE+-]*, "wall": [0-9][0-9.eE+-]*, "device": "')
+
+
+class NotATrafficLog(OSError):
+    """The path holds a file that is not a traffic log. An OSError, so it is reported as a file
+    that cannot be opened: one line at start-up, one logged error at `reopen`."""
 
 
 def traffic_entry(
@@ -115,7 +133,13 @@ class TrafficLog:
         return self._stream is not None
 
     def _open(self) -> None:
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_CLOEXEC, 0o600)
+        # read-write, to look at what an existing file holds through the descriptor that will write
+        fd = os.open(self.path, os.O_RDWR | os.O_APPEND | os.O_CREAT | os.O_CLOEXEC, 0o600)
+        try:
+            _check_appendable(fd)
+        except OSError:
+            os.close(fd)
+            raise
         self._stream = os.fdopen(fd, "a", encoding="utf-8")
 
     def record(
@@ -160,7 +184,12 @@ class TrafficLog:
         try:
             self._open()
         except OSError as exc:
-            log.error("traffic log %s: cannot reopen (%s); traffic logging stays off", self.path, exc)
+            log.error(
+                "traffic log %s: cannot reopen: %s; traffic logging stays off, devices keep serving "
+                "(SIGUSR1 tries again)",
+                self.path,
+                exc.strerror or exc,
+            )
             return
         log.warning("traffic log %s reopened", self.path)
 
@@ -174,6 +203,19 @@ class TrafficLog:
 
     def close(self) -> None:
         self._discard()
+
+
+def _check_appendable(fd: int) -> None:
+    """Refuse a non-empty regular file that does not begin with a record. Devices, pipes and
+    terminals (`/dev/null`, `/dev/stdout`) are written to unread."""
+    info = os.fstat(fd)
+    if not stat.S_ISREG(info.st_mode) or info.st_size == 0:
+        return
+    if not _RECORD_HEAD.match(os.read(fd, SNIFF_BYTES)):
+        raise NotATrafficLog(
+            "not a traffic log: its first line is no record, so nothing is appended to it (name a new "
+            "file or an existing traffic log)"
+        )
 
 
 @dataclass

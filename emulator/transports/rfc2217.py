@@ -15,7 +15,8 @@ DTR, RTS and break are accepted and logged; a `HostLine` has no field for them (
 The device side's lines read CTS, DSR and CD on, RI off: a powered controller on a direct cable.
 
 Bad input ends the connection with a log line, never the daemon: a malformed option (pyserial's
-parser raises on it), a subnegotiation longer than any RFC 2217 one, or a client that keeps
+parser raises on it; the line names the command and what was wrong, e.g. `SET-BAUDRATE with 2 value
+bytes (expected 4)`), a subnegotiation longer than any RFC 2217 one, or a client that keeps
 negotiating without reading the answers.
 """
 
@@ -31,6 +32,7 @@ import serial
 from serial import rfc2217
 
 from emulator.device import HostLine
+from emulator.ratelimit import LogLimiter
 from emulator.transports.pty import OUTPUT_LIMIT
 from emulator.transports.tcp import NetworkTransport
 
@@ -53,8 +55,57 @@ _SETTINGS: dict[str, Callable[[Any], bool]] = {
     "rtscts": lambda v: isinstance(v, bool),
     "xonxoff": lambda v: isinstance(v, bool),
 }
+#: RFC 2217's client commands (COM-PORT-OPTION subnegotiations), for messages about bad ones
+_COMMANDS: dict[bytes, str] = {
+    rfc2217.SET_BAUDRATE: "SET-BAUDRATE",
+    rfc2217.SET_DATASIZE: "SET-DATASIZE",
+    rfc2217.SET_PARITY: "SET-PARITY",
+    rfc2217.SET_STOPSIZE: "SET-STOPSIZE",
+    rfc2217.SET_CONTROL: "SET-CONTROL",
+    rfc2217.NOTIFY_LINESTATE: "NOTIFY-LINESTATE",
+    rfc2217.NOTIFY_MODEMSTATE: "NOTIFY-MODEMSTATE",
+    rfc2217.FLOWCONTROL_SUSPEND: "FLOWCONTROL-SUSPEND",
+    rfc2217.FLOWCONTROL_RESUME: "FLOWCONTROL-RESUME",
+    rfc2217.SET_LINESTATE_MASK: "SET-LINESTATE-MASK",
+    rfc2217.SET_MODEMSTATE_MASK: "SET-MODEMSTATE-MASK",
+    rfc2217.PURGE_DATA: "PURGE-DATA",
+}
+#: value bytes a command carries where pyserial reads them (a baud rate is 4, the others 1)
+_VALUE_SIZE = {
+    rfc2217.SET_BAUDRATE: 4,
+    rfc2217.SET_DATASIZE: 1,
+    rfc2217.SET_PARITY: 1,
+    rfc2217.SET_STOPSIZE: 1,
+    rfc2217.SET_LINESTATE_MASK: 1,
+    rfc2217.SET_MODEMSTATE_MASK: 1,
+}
+#: the values RFC 2217 defines for a command (0 asks for the current one)
+_VALUES = {
+    rfc2217.SET_PARITY: (0, *rfc2217.RFC2217_REVERSE_PARITY_MAP),
+    rfc2217.SET_STOPSIZE: (0, *rfc2217.RFC2217_REVERSE_STOPBIT_MAP),
+}
+
 _FLOW = ("rtscts", "xonxoff")
 _LINES = ("dtr", "rts", "break_condition")
+
+
+def describe_bad_option(suboption: bytes | None) -> str:
+    """What was wrong with a subnegotiation pyserial's parser refused (`suboption`: what came
+    between IAC SB and IAC SE, None for an IAC SE with no IAC SB), in RFC 2217's terms."""
+    if suboption is None:
+        return "IAC SE with no subnegotiation begun (no IAC SB before it)"
+    code = suboption[1:2]
+    name = _COMMANDS.get(code)
+    if suboption[:1] != rfc2217.COM_PORT_OPTION or name is None:
+        return f"subnegotiation {suboption[:8].hex(' ')}"
+    value = suboption[2:]
+    size = _VALUE_SIZE.get(code, 1)
+    if len(value) < size:
+        return f"{name} with {len(value)} value byte{'' if len(value) == 1 else 's'} (expected {size})"
+    allowed = _VALUES.get(code)
+    if allowed is not None and value[0] not in allowed:
+        return f"{name} with value {value[0]} (expected one of {', '.join(map(str, sorted(allowed)))})"
+    return f"{name} with value bytes {value[:8].hex(' ')}"
 
 
 class ComPortState:
@@ -125,8 +176,14 @@ class Rfc2217Transport(NetworkTransport):
     kind = "rfc2217"
     scheme = "rfc2217"
 
-    def __init__(self, bind: str, port: int, loop: asyncio.AbstractEventLoop | None = None) -> None:
-        super().__init__(bind, port, loop)
+    def __init__(
+        self,
+        bind: str,
+        port: int,
+        loop: asyncio.AbstractEventLoop | None = None,
+        limiter: LogLimiter | None = None,
+    ) -> None:
+        super().__init__(bind, port, loop, limiter)
         self._state: ComPortState | None = None
         self._manager: rfc2217.PortManager | None = None
         self._host = HostLine()
@@ -164,9 +221,14 @@ class Rfc2217Transport(NetworkTransport):
         assert manager is not None
         try:
             data = b"".join(manager.filter(raw))
-        except (ValueError, KeyError, IndexError, TypeError, struct.error) as exc:
+        except (ValueError, KeyError, IndexError, TypeError, struct.error):
+            # the parser raised inside the subnegotiation it was given: it still holds it
+            suboption = None if manager.suboption is None else bytes(manager.suboption)
             log.warning(
-                "%s: %s sent a malformed telnet option (%s); disconnecting", self.path, self._peer, exc
+                "%s: %s sent a malformed telnet option: %s; disconnecting",
+                self.path,
+                self._peer,
+                describe_bad_option(suboption),
             )
             return None
         if manager.suboption is not None and len(manager.suboption) > MAX_SUBOPTION:

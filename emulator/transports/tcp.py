@@ -1,9 +1,14 @@
 """A TCP port a host connects to instead of opening a serial port (`socket://HOST:PORT`).
 
-One host at a time, as on a serial line: a second client is refused with a log line. A client that
-goes away (EOF, reset, or a half-open connection that TCP keepalive finds dead) is a hang-up, as when
-a PTY host closes. The bytes are the device's bytes unchanged; a raw TCP host has no line settings,
-so it attaches with every `HostLine` field None: the device's own settings are assumed.
+One host at a time, as on a serial line: a second client is refused. A client that goes away (EOF,
+reset, or a half-open connection that TCP keepalive finds dead) is a hang-up, as when a PTY host
+closes. The bytes are the device's bytes unchanged; a raw TCP host has no line settings, so it
+attaches with every `HostLine` field None: the device's own settings are assumed.
+
+Logging: refusals (a client retrying in a loop) and failed accepts (out of descriptors) are written
+at most once per LOG_INTERVAL_S each (emulator/ratelimit.py), with the count held back since; the
+refusals still untold when the host leaves are told then. A port bound to any address but loopback
+gets one warning: whoever reaches it drives the device, and nothing authenticates them.
 
 Flow control follows emulator/transports/base.py: the socket is read only while `room()` > 0 (the
 rest stays in the kernel, so the client's send blocks), in slices of READ_CHUNK per wakeup, and
@@ -16,11 +21,13 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import errno
+import ipaddress
 import logging
 import select
 import socket
 
 from emulator.device import HostLine
+from emulator.ratelimit import LogLimiter, held_note
 from emulator.transports.base import PortSink, Transport
 from emulator.transports.pty import OUTPUT_LIMIT, READ_CHUNK, PortError
 
@@ -37,6 +44,9 @@ ACCEPT_RETRY_S = 1.0
 #: what is left unread at a hang-up is read in pieces of this size
 DRAIN_CHUNK = 65536
 
+#: the limiter's key for refused second clients
+_REFUSED = "refused"
+
 _HANGUP = select.EPOLLRDHUP | select.EPOLLHUP | select.EPOLLERR
 
 
@@ -44,12 +54,32 @@ def format_address(host: str, port: int) -> str:
     return f"[{host}]:{port}" if ":" in host else f"{host}:{port}"
 
 
+def is_loopback(host: str) -> bool:
+    """Whether `host` (a bound address, or a name) is this machine only: 127.0.0.0/8, ::1 (also as
+    an IPv4-mapped ::ffff:127.x.y.z) or `localhost`."""
+    if host.lower() == "localhost":
+        return True
+    try:
+        address = ipaddress.ip_address(host.split("%", 1)[0])  # without an IPv6 scope
+    except ValueError:
+        return False
+    if isinstance(address, ipaddress.IPv6Address) and address.ipv4_mapped is not None:
+        address = address.ipv4_mapped
+    return address.is_loopback
+
+
 class NetworkTransport(Transport):
     """The listening socket and the one connection; subclasses translate the byte streams."""
 
     scheme = ""
 
-    def __init__(self, bind: str, port: int, loop: asyncio.AbstractEventLoop | None = None) -> None:
+    def __init__(
+        self,
+        bind: str,
+        port: int,
+        loop: asyncio.AbstractEventLoop | None = None,
+        limiter: LogLimiter | None = None,
+    ) -> None:
         self._bind = bind
         self._port = port  # 0 until bound when any free port was asked for
         self._loop = loop
@@ -61,6 +91,9 @@ class NetworkTransport(Transport):
         self._mask = 0
         self._pending = bytearray()
         self._accept_retry: asyncio.TimerHandle | None = None
+        #: repeated refusals and accept failures (a test passes one on its own clock)
+        self._limiter = limiter or LogLimiter()
+        self._exposure_told = False
 
     @property
     def path(self) -> str:
@@ -91,10 +124,18 @@ class NetworkTransport(Transport):
                 f"{self.kind} port {self._where()}: cannot listen: {exc.strerror or exc}"
                 + ("; is another program (or emulator) using it?" if exc.errno == errno.EADDRINUSE else "")
             ) from None
-        self._port = listener.getsockname()[1]
+        bound, self._port = listener.getsockname()[:2]
         self._listener = listener
         assert self._loop is not None
         self._loop.add_reader(listener.fileno(), self._accept)
+        if not self._exposure_told and not is_loopback(bound):
+            self._exposure_told = True  # once per port, not again at each `reappear`
+            log.warning(
+                "%s: reachable from the network without authentication (bound to %s, not loopback): "
+                "anyone who can connect drives the device; bind 127.0.0.1 to keep it on this machine",
+                self.path,
+                bound,
+            )
 
     def _where(self) -> str:
         return format_address(self._bind, self._port)
@@ -134,19 +175,29 @@ class NetworkTransport(Transport):
             except (BlockingIOError, InterruptedError, ConnectionAbortedError):
                 return
             except OSError as exc:  # out of descriptors: retry later instead of spinning
-                log.error("%s: cannot accept a connection: %s", self.path, exc.strerror or exc)
+                held = self._limiter.admit(f"accept {exc.errno}")
+                if held is not None:
+                    log.error(
+                        "%s: cannot accept a connection: %s%s",
+                        self.path,
+                        exc.strerror or exc,
+                        held_note(held, "more failed accepts since the last such line"),
+                    )
                 self._loop.remove_reader(self._listener.fileno())
                 self._accept_retry = self._loop.call_later(ACCEPT_RETRY_S, self._resume_accepting)
                 return
             peer = format_address(*address[:2])
             if self._conn is not None:
-                log.warning(
-                    "%s: refused a connection from %s: %s is connected (a serial port has one host)",
-                    self.path,
-                    peer,
-                    self._peer,
-                )
                 conn.close()
+                held = self._limiter.admit(_REFUSED)
+                if held is not None:
+                    log.warning(
+                        "%s: refused a connection from %s: %s is connected (a serial port has one host)%s",
+                        self.path,
+                        peer,
+                        self._peer,
+                        held_note(held, "more refused since the last such line"),
+                    )
                 continue
             self._start(conn, peer)
 
@@ -187,6 +238,9 @@ class NetworkTransport(Transport):
         self._pending.clear()
         self._disconnected()
         log.info("%s: %s disconnected", self.path, self._peer)
+        held = self._limiter.settle(_REFUSED)
+        if held:
+            log.warning("%s: refused %d more connections while %s was connected", self.path, held, self._peer)
         if discarded:
             log.info(
                 "%s: %d bytes the host sent before hanging up were discarded unread", self.path, discarded

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 import serial
 
-from emulator.control import ControlClient, ControlFailure
+from emulator.control_client import ControlClient, ControlFailure
 from tests.support.daemon import ROOT, RunningDaemon, start_daemon
 
 PROBE = ROOT / "tests" / "support" / "probe.yaml"

@@ -15,7 +15,7 @@ import serial
 from serial import rfc2217
 
 from emulator.device import HostLine
-from emulator.transports.rfc2217 import MAX_SUBOPTION, Rfc2217Transport
+from emulator.transports.rfc2217 import MAX_SUBOPTION, Rfc2217Transport, describe_bad_option
 from tests.unit.test_pty_flow import until
 from tests.unit.test_tcp_transport import HostSink
 
@@ -99,3 +99,56 @@ def test_bad_options_end_that_connection_only(bad: bytes, caplog: pytest.LogCapt
     with caplog.at_level(logging.WARNING, "stage_emu.rfc2217"):
         asyncio.run(scenario())
     assert [r for r in caplog.records if "disconnecting" in r.message]
+
+
+def sub(command: bytes, value: bytes) -> bytes:
+    return SB_COM + command + value + rfc2217.IAC + rfc2217.SE
+
+
+@pytest.mark.parametrize(
+    ("bad", "told"),
+    [
+        (sub(rfc2217.SET_BAUDRATE, b"\x25\x80"), "SET-BAUDRATE with 2 value bytes (expected 4)"),
+        (sub(rfc2217.SET_BAUDRATE, b""), "SET-BAUDRATE with 0 value bytes (expected 4)"),
+        (sub(rfc2217.SET_DATASIZE, b""), "SET-DATASIZE with 0 value bytes (expected 1)"),
+        (sub(rfc2217.SET_PARITY, b"\x09"), "SET-PARITY with value 9 (expected one of 0, 1, 2, 3, 4, 5)"),
+        (sub(rfc2217.SET_STOPSIZE, b"\x07"), "SET-STOPSIZE with value 7 (expected one of 0, 1, 2, 3)"),
+        (sub(rfc2217.SET_MODEMSTATE_MASK, b""), "SET-MODEMSTATE-MASK with 0 value bytes (expected 1)"),
+        (rfc2217.IAC + rfc2217.SE, "IAC SE with no subnegotiation begun (no IAC SB before it)"),
+    ],
+    ids=["baud-2", "baud-0", "datasize-0", "parity-9", "stopsize-7", "modemstate-mask-0", "stray-SE"],
+)
+def test_a_malformed_option_is_told_in_rfc2217_terms(
+    bad: bytes, told: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The line said pyserial's own words ("unpack requires a buffer of 4 bytes", "9")."""
+
+    async def scenario() -> None:
+        sink = HostSink(None)
+        transport, port = serve(sink)
+        _, writer = await asyncio.open_connection("127.0.0.1", port)
+        writer.write(bad)
+        await until(sink, lambda: sink.detached == 1)
+        writer.close()
+        transport.close()
+
+    with caplog.at_level(logging.WARNING, "stage_emu.rfc2217"):
+        asyncio.run(scenario())
+    lines = [r.getMessage() for r in caplog.records if "disconnecting" in r.getMessage()]
+    assert len(lines) == 1 and lines[0].endswith(f"sent a malformed telnet option: {told}; disconnecting"), (
+        lines
+    )
+
+
+@pytest.mark.parametrize(
+    ("suboption", "told"),
+    [
+        (b"\x2c\x01\x00\x00\x25", "SET-BAUDRATE with 3 value bytes (expected 4)"),
+        (b"\x2c\x03", "SET-PARITY with 0 value bytes (expected 1)"),
+        (b"\x2c\x04\x01", "SET-STOPSIZE with value bytes 01"),  # nothing wrong with it
+        (b"\x2c\x63\x01", "subnegotiation 2c 63 01"),  # no RFC 2217 command
+        (b"\x18\x01", "subnegotiation 18 01"),  # another telnet option
+    ],
+)
+def test_describe_bad_option(suboption: bytes, told: str) -> None:
+    assert describe_bad_option(suboption) == told

@@ -4,19 +4,24 @@ ways as on a PTY (emulator/transports/base.py), and a clean refusal of an addres
 from __future__ import annotations
 
 import asyncio
+import errno
 import logging
 import socket
 
 import pytest
 
 from emulator.device import HostLine
+from emulator.ratelimit import LOG_INTERVAL_S, LogLimiter
 from emulator.transports.pty import OUTPUT_LIMIT, PortError
+from emulator.transports.rfc2217 import Rfc2217Transport
 from emulator.transports.tcp import (
     KEEPALIVE_COUNT,
     KEEPALIVE_IDLE_S,
     KEEPALIVE_INTERVAL_S,
     USER_TIMEOUT_MS,
+    NetworkTransport,
     TcpTransport,
+    is_loopback,
 )
 from tests.unit.test_pty_flow import Sink, until
 
@@ -206,3 +211,137 @@ def test_every_connection_is_set_up_to_find_a_silently_dead_peer() -> None:
         transport.close()
 
     asyncio.run(scenario())
+
+
+# ---- what is logged ------------------------------------------------------------------------------
+
+
+def exposure_warnings(caplog: pytest.LogCaptureFixture) -> list[str]:
+    return [r.getMessage() for r in caplog.records if "without authentication" in r.getMessage()]
+
+
+@pytest.mark.parametrize("kind", [TcpTransport, Rfc2217Transport])
+@pytest.mark.parametrize("bind", ["0.0.0.0", "::"])
+def test_a_port_reachable_from_the_network_is_warned_about_once(
+    kind: type[NetworkTransport], bind: str, caplog: pytest.LogCaptureFixture
+) -> None:
+    """`--tcp 0.0.0.0:N`, `--rfc2217 ...` or a rig `bind:` started without a word."""
+
+    paths: list[str] = []
+
+    async def scenario() -> None:
+        transport = kind(bind, 0)
+        transport.open(HostSink(None))
+        paths.append(transport.path)
+        transport.vanish()
+        transport.reappear()  # the same port again: no second warning
+        transport.close()
+
+    with caplog.at_level(logging.WARNING):
+        asyncio.run(scenario())
+    warnings = exposure_warnings(caplog)
+    assert len(warnings) == 1 and warnings[0].startswith(f"{paths[0]}: reachable from the network"), warnings
+
+
+@pytest.mark.parametrize("bind", ["127.0.0.1", "127.0.0.2", "localhost", "::1"])
+def test_a_loopback_port_is_not_warned_about(bind: str, caplog: pytest.LogCaptureFixture) -> None:
+    async def scenario() -> None:
+        transport = TcpTransport(bind, 0)
+        transport.open(HostSink(None))
+        transport.close()
+
+    with caplog.at_level(logging.WARNING):
+        asyncio.run(scenario())
+    assert exposure_warnings(caplog) == []
+
+
+@pytest.mark.parametrize(
+    ("host", "loopback"),
+    [
+        ("127.0.0.1", True),
+        ("127.255.0.9", True),
+        ("::1", True),
+        ("::ffff:127.0.0.1", True),
+        ("LocalHost", True),
+        ("0.0.0.0", False),
+        ("::", False),
+        ("192.168.1.5", False),
+        ("fe80::1%eth0", False),
+        ("stage-rig.lab", False),
+    ],
+)
+def test_loopback_is_127_0_0_0_8_and_ipv6_one_and_localhost(host: str, loopback: bool) -> None:
+    assert is_loopback(host) is loopback
+
+
+def test_refused_clients_are_logged_once_per_interval_with_a_count(caplog: pytest.LogCaptureFixture) -> None:
+    """A client retrying in a loop against a held port logged one line per attempt (550 in 10 s)."""
+    now = [0.0]
+
+    async def scenario() -> None:
+        sink = HostSink(None)
+        transport = TcpTransport("127.0.0.1", 0, limiter=LogLimiter(clock=lambda: now[0]))
+        transport.open(sink)
+        port = int(transport.path.rsplit(":", 1)[1])
+        _, first = await connect(port)
+        await until(sink, lambda: sink.attached == 1)
+
+        async def refused(count: int) -> None:
+            for _ in range(count):
+                reader, writer = await connect(port)
+                assert await asyncio.wait_for(reader.read(), 5) == b""  # closed by the server
+                writer.close()
+
+        await refused(30)
+        now[0] += LOG_INTERVAL_S
+        await refused(5)  # the interval is over: one line, counting the 29 held back
+        first.close()
+        await until(sink, lambda: sink.detached == 1)  # ... and the last 4 when the host leaves
+        transport.close()
+
+    with caplog.at_level(logging.WARNING, "stage_emu.tcp"):
+        asyncio.run(scenario())
+    lines = [r.getMessage() for r in caplog.records]
+    assert len(lines) == 3, lines
+    assert "refused a connection from 127.0.0.1:" in lines[0] and "more" not in lines[0]
+    assert lines[1].endswith("(and 29 more refused since the last such line)")
+    assert "refused 4 more connections while 127.0.0.1:" in lines[2]
+
+
+class _Exhausted:
+    """A listener whose `accept` fails as when the process is out of descriptors."""
+
+    def __init__(self, listener: socket.socket) -> None:
+        self._listener = listener
+
+    def fileno(self) -> int:
+        return self._listener.fileno()
+
+    def accept(self) -> tuple[socket.socket, object]:
+        raise OSError(errno.EMFILE, "Too many open files")
+
+
+def test_accept_failures_are_logged_once_per_interval(caplog: pytest.LogCaptureFixture) -> None:
+    """Out of descriptors, each port logged a line every ACCEPT_RETRY_S."""
+    now = [0.0]
+
+    async def scenario() -> None:
+        transport = TcpTransport("127.0.0.1", 0, limiter=LogLimiter(clock=lambda: now[0]))
+        transport.open(HostSink(None))
+        listener = transport._listener
+        assert listener is not None
+        transport._listener = _Exhausted(listener)  # type: ignore[assignment]
+        for _ in range(20):  # what the retry timer does every ACCEPT_RETRY_S
+            transport._accept()
+            transport._resume_accepting()
+        now[0] += LOG_INTERVAL_S
+        transport._accept()
+        transport._listener = listener
+        transport.close()
+
+    with caplog.at_level(logging.ERROR, "stage_emu.tcp"):
+        asyncio.run(scenario())
+    lines = [r.getMessage() for r in caplog.records]
+    assert len(lines) == 2, lines
+    assert "cannot accept a connection: Too many open files" in lines[0]
+    assert lines[1].endswith("(and 19 more failed accepts since the last such line)")

@@ -6,9 +6,12 @@ manual clock, with realistic pacing unless a test says otherwise."""
 from __future__ import annotations
 
 import json
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
+
+import pytest
 
 from emulator.clock import ManualClock
 from emulator.device import HostServices, LineSettings
@@ -16,7 +19,7 @@ from emulator.line import FAST, REALISTIC, char_time
 from emulator.profile import load_profile
 from emulator.registry import family
 from emulator.runner import DeviceRunner
-from emulator.trafficlog import TrafficLog
+from emulator.trafficlog import SNIFF_BYTES, NotATrafficLog, TrafficLog
 from protocols import mp285
 from tests.support.memory_transport import MemoryTransport
 from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)
@@ -288,3 +291,70 @@ def test_without_a_traffic_log_nothing_is_explained() -> None:
     device.receive(b"c\rzz\r", 0.0)
     assert device.take_rx_notes() == []
     assert [e.summary for e in device.take_output()] == [None, None]
+
+
+# ---- what the log appends to ---------------------------------------------------------------------
+
+
+def test_a_file_that_is_no_traffic_log_is_refused_untouched(tmp_path: Path) -> None:
+    """`--log-traffic notes.txt` appended records to the user's notes."""
+    notes = tmp_path / "notes.txt"
+    notes.write_text("meeting at 10\n")
+    before = notes.stat()
+    with pytest.raises(NotATrafficLog, match="not a traffic log"):
+        TrafficLog(notes)
+    assert notes.read_text() == "meeting at 10\n"
+    assert (notes.stat().st_size, notes.stat().st_mtime_ns) == (before.st_size, before.st_mtime_ns)
+
+
+def test_an_empty_file_or_an_earlier_traffic_log_is_appended_to(tmp_path: Path) -> None:
+    path = tmp_path / "traffic.jsonl"
+    path.touch()
+    first = TrafficLog(path)
+    # a first line longer than what is read of it: its head tells it is a record
+    first.record(0.5, "stage", "main", "tx", bytes(SNIFF_BYTES), "a long reply")
+    first.event(0.6, "stage", {"ev": "move_complete"})
+    first.close()
+    second = TrafficLog(path)
+    second.record(1.0, "stage", "main", "rx", b"c\r", None)
+    second.close()
+    records = [json.loads(line) for line in path.read_text().splitlines()]
+    assert [(r["t"], r["dir"]) for r in records] == [(0.5, "tx"), (0.6, "ev"), (1.0, "rx")]
+
+
+def test_a_log_starting_with_an_event_is_a_traffic_log(tmp_path: Path) -> None:
+    path = tmp_path / "traffic.jsonl"
+    first = TrafficLog(path)
+    first.event(1e-06, "stage", {"ev": "ttl_out0", "level": 1})
+    first.close()
+    TrafficLog(path).close()
+
+
+def test_a_device_is_written_to_unread() -> None:
+    traffic = TrafficLog(Path("/dev/null"))
+    traffic.record(0.0, "stage", "main", "rx", b"x", None)
+    assert traffic.active
+    traffic.close()
+
+
+def test_reopen_onto_a_file_that_is_no_traffic_log_stops_logging_once(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """SIGUSR1 after the path was replaced by another file: one error, logging off, file untouched."""
+    path = tmp_path / "traffic.jsonl"
+    traffic = TrafficLog(path)
+    traffic.record(0.0, "stage", "main", "rx", b"x", None)
+    path.rename(tmp_path / "traffic.1.jsonl")
+    path.write_text("not mine to write\n")
+    with caplog.at_level(logging.ERROR, "stage_emu.traffic"):
+        traffic.reopen()
+        for _ in range(10):
+            traffic.record(1.0, "stage", "main", "rx", b"y", None)
+    assert not traffic.active
+    errors = [r.getMessage() for r in caplog.records]
+    assert len(errors) == 1 and "cannot reopen: not a traffic log" in errors[0], errors
+    assert path.read_text() == "not mine to write\n"
+    path.unlink()
+    traffic.reopen()  # the next SIGUSR1 starts afresh once the path is free
+    assert traffic.active
+    traffic.close()
