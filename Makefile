@@ -9,13 +9,21 @@ ARGS ?=
 
 venv: $(STAMP)
 
-# Setup is quiet: one line, and pip's full output only if it fails (it stays in .venv/setup.log).
+# Setup prints one line per step and a few of pip's own (scripts/setup_step.py); pip's full output
+# stays in .venv/setup.log and is shown only if a step fails.
+SETUP_LOG := $(VENV)/setup.log
+STEP := $(BIN)/python scripts/setup_step.py $(SETUP_LOG)
+PIP := $(BIN)/python -m pip install --disable-pip-version-check
+
 $(STAMP): pyproject.toml
-	@echo "stage-emu: setting up .venv (first run, or pyproject.toml changed)..." >&2
-	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
-	@( $(BIN)/python -m pip install --disable-pip-version-check --upgrade pip \
-	  && $(BIN)/python -m pip install --disable-pip-version-check -e '.[test]' ) > $(VENV)/setup.log 2>&1 \
-	  || { cat $(VENV)/setup.log >&2; echo "stage-emu: setup failed (log above, also in $(VENV)/setup.log)" >&2; exit 1; }
+	@echo "stage-emu: setting up .venv (first run, or pyproject.toml changed): 4 steps, a few minutes on a fresh machine" >&2
+	@if test -x $(BIN)/python; then echo "stage-emu: [1/4] keeping the existing .venv" >&2; \
+	  else echo "stage-emu: [1/4] creating .venv" >&2 && $(PYTHON) -m venv $(VENV); fi
+	@: > $(SETUP_LOG)
+	@$(STEP) "[2/4] upgrading pip" $(PIP) --upgrade pip
+	@$(STEP) "[3/4] installing stage-emu and its run-time dependencies" $(PIP) -e .
+	@$(STEP) "[4/4] installing the test extra (pytest, hypothesis, ruff, mypy, microscope, matplotlib)" \
+	  $(PIP) -e '.[test]'
 	@touch $(STAMP)
 
 run: $(STAMP)

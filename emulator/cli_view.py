@@ -21,7 +21,7 @@ from rich.table import Table
 from rich.text import Text
 
 from emulator.cli_common import connect, fail
-from emulator.control import ControlClient, ControlFailure
+from emulator.control_client import ControlClient, ControlFailure
 from emulator.trace import REPLY_WAIT_S
 from emulator.view import DeviceView, ExchangeRow, ViewState
 
@@ -79,7 +79,10 @@ def render_device(view: DeviceView) -> Panel:
     facts.add_row("state", Text(view.busy, style="yellow" if view.busy not in ("idle", "?") else "green"))
     facts.add_row("lcd", "\n".join(view.lcd) or "-")
     facts.add_row("ttl_out0", view.ttl_out0)
-    ports = Table("port", "path", "attached", "host line", "timing", "stats", expand=True)
+    ports = Table("port", expand=True)
+    ports.add_column("path", overflow="fold")  # never cut short: it is what a host opens
+    for header in ("attached", "host line", "timing", "stats"):
+        ports.add_column(header)
     for row in view.ports:
         ports.add_row(row.port, row.path, row.attached, row.host, row.timing, row.stats)
     events = "\n".join(view.events) if view.events else "(none yet)"

@@ -63,7 +63,13 @@ class HostLine:
         return replace(fallback, **seen)
 
     def describe(self) -> str:
-        """Compact form used in log lines, e.g. `9600 8N1 rtscts`."""
+        """Compact form used in log lines, `ctl list` and `stage-emu view`, e.g. `9600 8N1 rtscts`.
+        A setting not visible is a `?` and named after it, so that a PTY host (no data bits, no
+        parity) reads `9600 ??1 (data bits, parity not visible)`; a raw TCP host shows none."""
+        shown = ("baud", "data_bits", "parity", "stop_bits")
+        unseen = [name.replace("_", " ") for name in shown if getattr(self, name) is None]
+        if len(unseen) == len(shown) and self.rtscts is None and self.xonxoff is None:
+            return "line settings not visible"
         baud = "?" if self.baud is None else str(self.baud)
         bits = "?" if self.data_bits is None else str(self.data_bits)
         parity = "?" if self.parity is None else self.parity[0].upper()
@@ -73,7 +79,7 @@ class HostLine:
             text += " rtscts"
         if self.xonxoff:
             text += " xonxoff"
-        return text
+        return f"{text} ({', '.join(unseen)} not visible)" if unseen else text
 
 
 @dataclass(frozen=True)

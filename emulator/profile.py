@@ -10,14 +10,18 @@ A profile file:
     ...                      # the family's own sections (device parameters, behaviour knobs)
 
 `extends` chains are merged parent first (mappings key by key, other values replaced) and checked
-for cycles. Every error names the file, line and key and says what is allowed, on one line.
+for cycles. Every error names the file, line and key and says what is allowed, on one line. A file
+that cannot be read, or whose `extends` chain cannot be resolved, is one error; once read, every
+problem of its keys and values is reported, in file order (`ProfileError.problems`).
 
 Limits (besides those of `emulator.yamlsource` on each file):
 - `MAX_CHAIN` (16): profiles in one extends chain (the bundled ones use at most 3);
 - a reference names a bundled profile or a `.yaml`/`.yml` file; a file reached through `extends`
   that is not a mapping with `spec:` or `device:` is refused without quoting any of it;
 - a profile extends one of its own family (the child's `device:` line is blamed);
-- `MAX_DESCRIPTION` (200): `description` is one line of printable text.
+- `MAX_DESCRIPTION` (200): `description` is one line of printable text;
+- `MAX_PROBLEMS` (50): problems listed one per line; a file with more is reported as its first
+  problem and their count, on one line (10 000 unknown keys are not a profile with typos).
 """
 
 from __future__ import annotations
@@ -29,8 +33,28 @@ from pathlib import Path as FsPath
 from typing import Any, Generic, TypeVar
 
 from emulator import registry
-from emulator.schema import Choice, Int, KnobRow, Schema, SchemaError, Section, Text, describe_rows, setting
-from emulator.yamlsource import FileProblem, Located, SourceError, Where, merge, read_source
+from emulator.schema import (
+    Choice,
+    Int,
+    KnobRow,
+    Schema,
+    SchemaError,
+    Section,
+    Text,
+    describe_rows,
+    every_error,
+    setting,
+)
+from emulator.yamlsource import (
+    FileProblem,
+    Located,
+    Problem,
+    SourceError,
+    Where,
+    in_file_order,
+    merge,
+    read_source,
+)
 
 SPEC_VERSION = 1
 TOP_LEVEL_KEYS = ("spec", "device", "description", "extends")
@@ -38,12 +62,25 @@ PROFILE_SUFFIXES = (".yaml", ".yml")
 MAX_CHAIN = 16
 MAX_DESCRIPTION = 200
 MAX_REFERENCE = 4096  # PATH_MAX
+MAX_PROBLEMS = 50
 DESCRIPTION = Text(MAX_DESCRIPTION)
 NOT_A_PROFILE = "is not a profile (a profile is a YAML mapping with spec: and device:)"
 
 
 class ProfileError(SourceError):
-    """A profile (or rig) that cannot be loaded; the message is ready for the user."""
+    """A profile (or rig) that cannot be loaded. Its message is its first problem, one line ready
+    for the user; `problems` holds every problem found, in file order (`report()` lists them)."""
+
+    def __init__(self, *problems: str | Problem) -> None:
+        self.problems = tuple(p if isinstance(p, Problem) else Problem(p) for p in problems)
+        super().__init__(self.problems[0].text)
+
+    def report(self) -> list[str]:
+        """One line per problem; past MAX_PROBLEMS the file is hardly a profile with a few slips,
+        and the first problem stands for all of them, on one line."""
+        if len(self.problems) <= MAX_PROBLEMS:
+            return [p.text for p in self.problems]
+        return [f"{self.problems[0].text} (and {len(self.problems) - 1} more problems)"]
 
 
 class Line(Schema):
@@ -155,7 +192,7 @@ def is_rig(data: Any) -> bool:
 def _refuse(via: Located | None, ref: str, path: FsPath, message: str) -> ProfileError:
     """`message` about the profile `ref`, blamed on the `extends:` line that named it if any."""
     if via is not None:
-        return ProfileError(str(via.error(("extends",), f"{_quoted(ref)} {message}")))
+        return ProfileError(via.problem(("extends",), f"{_quoted(ref)} {message}"))
     return ProfileError(f"{display_path(path)}: {message}")
 
 
@@ -178,7 +215,7 @@ def _read_profile(ref: str, path: FsPath, via: Located | None) -> Located:
             if via is None:
                 raise ProfileError(f"{ref}: no such profile ({known})") from None
             raise ProfileError(
-                str(via.error(("extends",), f"unknown profile {_quoted(ref)} ({known})"))
+                via.problem(("extends",), f"unknown profile {_quoted(ref)} ({known})")
             ) from None
         if via is not None:
             raise _refuse(via, ref, path, exc.reason) from None
@@ -189,7 +226,7 @@ def _read_profile(ref: str, path: FsPath, via: Located | None) -> Located:
     if is_rig(data):
         raise _refuse(via, ref, path, "is a rig file, not a profile")
     if not isinstance(data, dict) and via is None:
-        raise ProfileError(str(located.error((), "a profile must be a mapping")))
+        raise ProfileError(located.problem((), "a profile must be a mapping"))
     if not isinstance(data, dict) or ("spec" not in data and "device" not in data):
         raise _refuse(via, ref, path, NOT_A_PROFILE)
     return located
@@ -199,10 +236,10 @@ def _load_chain(
     ref: str, relative_to: FsPath | None, seen: tuple[str, ...], via: Located | None
 ) -> tuple[Located, tuple[str, ...]]:
     if via is not None and len(seen) >= MAX_CHAIN:
-        raise ProfileError(str(via.error(("extends",), f"extends chain longer than {MAX_CHAIN} profiles")))
+        raise ProfileError(via.problem(("extends",), f"extends chain longer than {MAX_CHAIN} profiles"))
     if "\0" in ref or len(ref) > MAX_REFERENCE:
         message = "is not a profile name or path"
-        raise ProfileError(str(via.error(("extends",), message)) if via else f"{_quoted(ref)} {message}")
+        raise ProfileError(via.problem(("extends",), message) if via else f"{_quoted(ref)} {message}")
     path = resolve_reference(ref, relative_to)
     try:
         key = str(path.resolve())
@@ -221,7 +258,7 @@ def _load_chain(
     chain: tuple[str, ...] = (key,)
     if parent_ref is not None:
         if not isinstance(parent_ref, str) or not parent_ref:
-            raise ProfileError(str(located.error(("extends",), "must be a profile name or path")))
+            raise ProfileError(located.problem(("extends",), "must be a profile name or path"))
         parent, parent_chain = _load_chain(parent_ref, path.parent, (*seen, key), located)
         _check_family(located, parent.data.get("device"), parent_ref)
         located = merge(parent, located)
@@ -236,7 +273,7 @@ def _check_family(child: Located, parent_device: Any, parent_ref: str) -> None:
     both = [value for value in (device, parent_device) if isinstance(value, str) and value in known]
     if len(both) == 2 and device != parent_device:
         message = f"{device!r} cannot extend {_quoted(parent_ref)}, a profile of the {parent_device} family"
-        raise ProfileError(str(child.error(("device",), f"{message}; extend one of the {device} family")))
+        raise ProfileError(child.problem(("device",), f"{message}; extend one of the {device} family"))
 
 
 def load_profile(
@@ -245,51 +282,60 @@ def load_profile(
     """Load a bundled profile by name or a profile file by path, apply `overrides`, validate.
 
     `overrides` is merged last, like one more `extends` layer (a plain dict, e.g. from a test, or a
-    located sub-tree of a rig file so that errors point into the rig)."""
+    located sub-tree of a rig file so that errors point into the rig). A file that cannot be read
+    or resolved (its `extends` chain) raises at its first problem; once it is read, every problem of
+    its keys and values is found and raised together, in file order."""
     located, chain = _load_chain(ref, relative_to, (), None)
     if isinstance(overrides, dict):
         overrides = Located(overrides, {(): Where("<overrides>", 1)})
     if overrides is not None:
         located = merge(located, overrides)
     data = located.data
-    name = FsPath(chain[-1]).stem
-    _check_top(located)
-    fam = registry.family(data["device"])
-    assert fam is not None  # _check_top refused unknown families
-    body = {k: v for k, v in data.items() if k not in TOP_LEVEL_KEYS}
-    try:
-        config = Section(fam.schema).check(body, ())
-    except SchemaError as exc:
-        raise ProfileError(str(located.error(exc.path, exc.message))) from None
+    problems = _check_top(located)
+    device = data.get("device")
+    fam = registry.family(device) if isinstance(device, str) else None
+    config = None
+    if fam is not None:
+        body = {k: v for k, v in data.items() if k not in TOP_LEVEL_KEYS}
+        try:
+            config = Section(fam.schema).check(body, ())
+        except SchemaError as exc:
+            problems += [located.problem(e.path, e.message) for e in every_error(exc)]
+    if problems:
+        raise ProfileError(*in_file_order(problems, display_path(resolve_reference(ref, relative_to))))
+    assert fam is not None and config is not None  # an unknown family is a problem of `device`
     return Profile(
-        name, located.places[()].source, fam.name, data.get("description") or "", tuple(chain), config
+        FsPath(chain[-1]).stem,
+        located.places[()].source,
+        fam.name,
+        data.get("description") or "",
+        tuple(chain),
+        config,
     )
 
 
-def _check_top(located: Located) -> None:
+def _check_top(located: Located) -> list[Problem]:
+    """The problems of the keys every profile has (`spec`, `device`, `description`)."""
     data = located.data
+    problems = []
     spec = data.get("spec")
     if spec is None:
-        raise ProfileError(str(located.error(("spec",), f"is required (spec: {SPEC_VERSION})")))
-    if spec != SPEC_VERSION or isinstance(spec, bool):
-        raise ProfileError(
-            str(located.error(("spec",), f"{_quoted(spec)} is not a supported version (only {SPEC_VERSION})"))
-        )
+        problems.append(located.problem(("spec",), f"is required (spec: {SPEC_VERSION})"))
+    elif spec != SPEC_VERSION or isinstance(spec, bool):
+        message = f"{_quoted(spec)} is not a supported version (only {SPEC_VERSION})"
+        problems.append(located.problem(("spec",), message))
     device = data.get("device")
-    known = sorted(registry.families())
+    known = ", ".join(sorted(registry.families())) or "none"
     if device is None:
-        raise ProfileError(
-            str(located.error(("device",), f"is required; one of {', '.join(known) or 'none'}"))
-        )
-    if not isinstance(device, str) or registry.family(device) is None:
-        raise ProfileError(
-            str(located.error(("device",), f"{_quoted(device)} is not one of {', '.join(known) or 'none'}"))
-        )
+        problems.append(located.problem(("device",), f"is required; one of {known}"))
+    elif not isinstance(device, str) or registry.family(device) is None:
+        problems.append(located.problem(("device",), f"{_quoted(device)} is not one of {known}"))
     description = data.get("description")
     if description is not None and not isinstance(description, str):
-        raise ProfileError(str(located.error(("description",), "must be a string")))
-    if description is not None:
+        problems.append(located.problem(("description",), "must be a string"))
+    elif description is not None:
         try:
             DESCRIPTION.check(description, ("description",))
         except SchemaError as exc:
-            raise ProfileError(str(located.error(exc.path, exc.message))) from None
+            problems.append(located.problem(exc.path, exc.message))
+    return problems

@@ -42,11 +42,12 @@ from emulator.schema import (
     Section,
     Str,
     Type,
+    every_error,
     required,
     setting,
 )
 from emulator.transports import KINDS, NETWORK_KINDS
-from emulator.yamlsource import SourceError, read_source
+from emulator.yamlsource import Problem, SourceError, in_file_order, read_source
 
 NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}"
 #: where a network port listens unless its `bind` says otherwise: this machine only
@@ -134,18 +135,31 @@ class Rig:
 
 
 def load_rig(path: FsPath) -> Rig:
+    """Read and check a rig file and every profile it names; every problem found is raised
+    together, in file order (a file that cannot be read at all is one)."""
     try:
         located = read_source(path)
     except SourceError as exc:
         raise ProfileError(str(exc)) from None
+    problems: list[Problem] = []
     try:
         raw = Section(RigFile).check(located.data, ())
     except SchemaError as exc:
-        raise ProfileError(str(located.error(exc.path, exc.message))) from None
+        problems += [located.problem(e.path, e.message) for e in every_error(exc)]
+    profiles = []
+    for index, entry in _entries(located.data):
+        ref, overrides = entry.get("profile"), entry.get("overrides")
+        if not isinstance(ref, str) or not isinstance(overrides, dict | None):
+            continue  # the schema said so
+        where = located.subtree(("devices", index, "overrides")) if overrides else None
+        try:
+            profiles.append(load_profile(ref, where, relative_to=path.parent))
+        except ProfileError as exc:
+            problems += exc.problems
+    if problems:
+        raise ProfileError(*in_file_order(problems, str(path)))
     devices = []
-    for index, dev in enumerate(raw.devices):
-        overrides = located.subtree(("devices", index, "overrides")) if dev.overrides else None
-        profile = load_profile(dev.profile, overrides, relative_to=path.parent)
+    for dev, profile in zip(raw.devices, profiles, strict=True):
         specs = tuple(
             PortSpec(
                 p.channel,
@@ -160,10 +174,18 @@ def load_rig(path: FsPath) -> Rig:
         )
         devices.append(DeviceSpec(dev.name, profile, with_every_channel(profile, specs)))
     rig = Rig(str(path), tuple(devices))
-    problem = check_rig(rig)
-    if problem:
-        raise ProfileError(f"{path}: {problem}")
+    crossed = [located.problem(("devices", i), message) for i, message in rig_problems(rig)]
+    if crossed:
+        raise ProfileError(*in_file_order(crossed, str(path)))
     return rig
+
+
+def _entries(data: Any) -> list[tuple[int, dict[str, Any]]]:
+    """The device entries of a rig file's data that are mappings, with their index (the schema
+    reports the rest)."""
+    devices = data.get("devices") if isinstance(data, dict) else None
+    listed = devices if isinstance(devices, list) else []
+    return [(index, entry) for index, entry in enumerate(listed) if isinstance(entry, dict)]
 
 
 def _link(link: str | None, base: FsPath) -> FsPath | None:
@@ -192,30 +214,36 @@ def _beside(main_link: FsPath | None, channel: str) -> FsPath | None:
     return main_link.with_name(f"{main_link.name}.{channel}")
 
 
-def check_rig(rig: Rig) -> str:
-    """Cross-device checks: unique names, one port per channel the device has, unique links."""
-    names = [d.name for d in rig.devices]
-    duplicate = next((n for n in names if names.count(n) > 1), None)
-    if duplicate:
-        return f"device name {duplicate!r} is used twice"
-    links: list[FsPath] = []
-    addresses: list[str] = []
-    for dev in rig.devices:
+def rig_problems(rig: Rig) -> list[tuple[int, str]]:
+    """Cross-device checks: unique names, one port per channel the device has, unique links and
+    addresses. Each problem comes with the index of the device at fault (the later of two)."""
+    problems: list[tuple[int, str]] = []
+    names: set[str] = set()
+    links: set[FsPath] = set()
+    addresses: set[str] = set()
+    for index, dev in enumerate(rig.devices):
+        if dev.name in names:
+            problems.append((index, f"device name {dev.name!r} is used twice"))
+        names.add(dev.name)
         channels = [p.channel for p in dev.ports]
-        again = next((c for c in channels if channels.count(c) > 1), None)
-        if again:
-            return f"device {dev.name!r} has two ports on channel {again!r}"
         has = channels_of(dev.profile)
-        unknown = next((c for c in channels if c not in has), None)
-        if unknown:
-            return f"device {dev.name!r} has no channel {unknown!r} (it has: {', '.join(has)})"
-        links.extend(p.link for p in dev.ports if p.link is not None)
-        addresses.extend(p.address() for p in dev.ports if p.transport in NETWORK_KINDS and p.port)
-    twice = next((link for link in links if links.count(link) > 1), None)
-    if twice:
-        return f"link {twice} is used by two ports"
-    taken = next((a for a in addresses if addresses.count(a) > 1), None)
-    return f"address {taken} is used by two ports" if taken else ""
+        for channel in dict.fromkeys(channels):
+            if channels.count(channel) > 1:
+                problems.append((index, f"device {dev.name!r} has two ports on channel {channel!r}"))
+            if channel not in has:
+                problems.append(
+                    (index, f"device {dev.name!r} has no channel {channel!r} (it has: {', '.join(has)})")
+                )
+        for port in dev.ports:
+            if port.link is not None:
+                if port.link in links:
+                    problems.append((index, f"link {port.link} is used by two ports"))
+                links.add(port.link)
+            if port.transport in NETWORK_KINDS and port.port:
+                if port.address() in addresses:
+                    problems.append((index, f"address {port.address()} is used by two ports"))
+                addresses.add(port.address())
+    return problems
 
 
 def parse_address(text: str) -> tuple[str, int]:
@@ -257,7 +285,7 @@ def rig_from_profiles(entries: list[str], network: tuple[str, str] | None = None
         name = profile.name if index == 0 else f"{profile.name}-{index + 1}"
         devices.append(DeviceSpec(name, profile, with_every_channel(profile, (port,))))
     rig = Rig("--profile", tuple(devices))
-    problem = check_rig(rig)
-    if problem:
-        raise ProfileError(problem)
+    problems = rig_problems(rig)
+    if problems:
+        raise ProfileError(*(message for _, message in problems))
     return rig

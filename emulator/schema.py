@@ -13,7 +13,8 @@ never from calling the class.
 Numbers are always finite (`.nan` and `.inf` are refused); families give every duration, speed,
 distance and factor a maximum too, so no value can overflow the model. Strings the device itself
 prints are `Text(n, ascii=True)`: printable ASCII of at most n characters. Error messages are one
-line and quote at most `SHOW_LIMIT` characters of a value.
+line and quote at most `SHOW_LIMIT` characters of a value; a section, list or mapping raises all
+the problems of its items together (`SchemaErrors`), so that `validate` can list them.
 """
 
 from __future__ import annotations
@@ -34,7 +35,10 @@ SHOW_LIMIT = 60
 def finite_number(value: Any) -> bool:
     """A number that device time and kinematics can compute with: not a bool, not NaN or infinite
     (JSON from a host or a state file, YAML from a profile, a command-line option)."""
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    try:
+        return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
+    except OverflowError:  # an integer too big for a float (JSON has no limit on digits)
+        return False
 
 
 class SchemaError(Exception):
@@ -46,6 +50,31 @@ class SchemaError(Exception):
         self.message = message
 
 
+class SchemaErrors(SchemaError):
+    """Every problem found in one value (a section, a list, a mapping), in the order checked; as a
+    SchemaError it is the first, for callers that report one."""
+
+    def __init__(self, errors: Sequence[SchemaError]) -> None:
+        flat = tuple(one for error in errors for one in every_error(error))
+        super().__init__(flat[0].path, flat[0].message)
+        self.errors = flat
+
+
+def every_error(error: SchemaError) -> tuple[SchemaError, ...]:
+    """The problems `error` stands for: its own, or each of a SchemaErrors."""
+    return error.errors if isinstance(error, SchemaErrors) else (error,)
+
+
+def _checked(kind: Type, value: Any, path: Path, errors: list[SchemaError]) -> Any:
+    """`kind.check(value, path)`, its SchemaError kept in `errors` (None then), so that a value
+    reports all its problems."""
+    try:
+        return kind.check(value, path)
+    except SchemaError as exc:
+        errors.append(exc)
+        return None
+
+
 def path_text(path: Path) -> str:
     text = ""
     for part in path:
@@ -53,6 +82,16 @@ def path_text(path: Path) -> str:
             part = _clip(repr(part))  # keep messages on one line
         text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
     return text
+
+
+def show_number(value: float) -> str:
+    """A number for a message: short (`1e+06`, `0.001`) where that is exact, else every digit, so a
+    value just past a bound never reads as the bound (`10000.0001`, not `10000`)."""
+    try:
+        short = f"{value:g}"
+    except OverflowError:  # an integer past the float range (JSON allows any)
+        return repr(value)
+    return short if float(short) == value else repr(value)
 
 
 def _show(value: Any) -> str:
@@ -115,7 +154,7 @@ class Number(Type):
         if self.integer:
             value = int(value)
         if self.choices is not None and value not in self.choices:
-            allowed = ", ".join(f"{c:g}" for c in self.choices)
+            allowed = ", ".join(show_number(c) for c in self.choices)
             raise SchemaError(path, f"{_show(value)} is not one of {allowed}")
         low_bad = self.minimum is not None and (
             value <= self.minimum if self.exclusive_minimum else value < self.minimum
@@ -125,14 +164,15 @@ class Number(Type):
         return value
 
     def _range(self) -> str:
-        low = "" if self.minimum is None else f"{'>' if self.exclusive_minimum else '>='} {self.minimum:g}"
-        high = "" if self.maximum is None else f"<= {self.maximum:g}"
+        above = ">" if self.exclusive_minimum else ">="
+        low = "" if self.minimum is None else f"{above} {show_number(self.minimum)}"
+        high = "" if self.maximum is None else f"<= {show_number(self.maximum)}"
         return ", ".join(part for part in (low, high) if part) or "any"
 
     def describe(self) -> str:
         kind = "int" if self.integer else "number"
         if self.choices is not None:
-            return f"{kind} in {{{', '.join(f'{c:g}' for c in self.choices)}}}"
+            return f"{kind} in {{{', '.join(show_number(c) for c in self.choices)}}}"
         bounds = self._range()
         return kind if bounds == "any" else f"{kind} {bounds}"
 
@@ -228,7 +268,10 @@ class ListOf(Type):
             raise SchemaError(path, f"has {len(value)} items, expected at least {self.min_length}")
         if self.max_length is not None and len(value) > self.max_length:
             raise SchemaError(path, f"has {len(value)} items, expected at most {self.max_length}")
-        items = tuple(self.item.check(v, (*path, i)) for i, v in enumerate(value))
+        errors: list[SchemaError] = []
+        items = tuple(_checked(self.item, v, (*path, i), errors) for i, v in enumerate(value))
+        if errors:
+            raise SchemaErrors(errors)
         if self.unique and len(set(items)) != len(items):
             raise SchemaError(path, "contains duplicate items")
         return items
@@ -249,9 +292,13 @@ class MapOf(Type):
         if not isinstance(value, dict):
             raise SchemaError(path, f"{_show(value)} is not a mapping")
         result = {}
+        errors: list[SchemaError] = []
         for k, v in value.items():
-            key = self.key.check(k, (*path, str(k)))
-            result[key] = self.value.check(v, (*path, key))
+            key = _checked(self.key, k, (*path, str(k)), errors)
+            if key is not None:
+                result[key] = _checked(self.value, v, (*path, key), errors)
+        if errors:
+            raise SchemaErrors(errors)
         return result
 
     def describe(self) -> str:
@@ -329,23 +376,28 @@ class Section(Type, Generic[S]):
             raise SchemaError(path, f"{_show(value)} is not a mapping")
         fields = schema_fields(self.cls)
         known = {f.name for f in fields}
-        for key in value:
-            if key not in known:
-                raise SchemaError((*path, str(key)), f"unknown key; allowed here: {', '.join(sorted(known))}")
+        allowed = ", ".join(sorted(known))
+        errors = [
+            SchemaError((*path, str(k)), f"unknown key; allowed here: {allowed}")
+            for k in value
+            if k not in known
+        ]
         resolved: dict[str, Any] = {}
         derived: list[tuple[str, Type, Derived]] = []
         for f in fields:
             kind, default, at = spec_of(f).type, default_of(f), (*path, f.name)
             if f.name in value:
-                resolved[f.name] = kind.check(value[f.name], at)
+                resolved[f.name] = _checked(kind, value[f.name], at, errors)
             elif default is MISSING:
-                raise SchemaError(at, "is required")
+                errors.append(SchemaError(at, "is required"))
             elif isinstance(default, Derived):
                 derived.append((f.name, kind, default))
             elif isinstance(kind, Section):
-                resolved[f.name] = kind.check(default or {}, at)
+                resolved[f.name] = _checked(kind, default or {}, at, errors)
             else:
-                resolved[f.name] = None if default is None else kind.check(default, at)
+                resolved[f.name] = None if default is None else _checked(kind, default, at, errors)
+        if errors:  # derived defaults and cross-field checks need every field resolved
+            raise SchemaErrors(errors)
         for name, kind, rule in derived:
             computed = rule.compute(resolved)
             resolved[name] = None if computed is None else kind.check(computed, (*path, name))

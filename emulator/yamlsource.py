@@ -69,6 +69,30 @@ class SourceError(Exception):
     """An error in a YAML file, already formatted as `file:line: key: message`."""
 
 
+@dataclass(frozen=True)
+class Problem:
+    """One error of a file, formatted (`file:line: key: message`), and where it is (None: nowhere
+    in particular, e.g. the file as a whole), to report several in file order."""
+
+    text: str
+    where: Where | None = None
+
+
+def in_file_order(problems: list[Problem], primary: str) -> list[Problem]:
+    """`problems` without repeats, those of the file `primary` first, each file's by line; those
+    without a place last, in the order found."""
+    unique = list(dict.fromkeys(problems))
+    sources = list(dict.fromkeys(p.where.source for p in unique if p.where is not None))
+
+    def key(problem: Problem) -> tuple[int, int, int]:
+        if problem.where is None:
+            return (2, 0, 0)
+        rank = 0 if problem.where.source == primary else 1
+        return (rank, sources.index(problem.where.source), problem.where.line)
+
+    return sorted(unique, key=key)
+
+
 class FileProblem(SourceError):
     """The file itself cannot be read as text (missing, not a regular file, too big...).
 
@@ -103,10 +127,13 @@ class Located:
         return Located(data, places)
 
     def error(self, path: Path, message: str) -> SourceError:
+        return SourceError(self.problem(path, message).text)
+
+    def problem(self, path: Path, message: str) -> Problem:
         place = self.where(path)
         prefix = f"{place.source}:{place.line}: " if place else ""
         key = f"{path_text(path)}: " if path else ""
-        return SourceError(f"{prefix}{key}{message}")
+        return Problem(f"{prefix}{key}{message}", place)
 
 
 def read_source(path: os.PathLike[str] | str, source: str | None = None, quote: bool = True) -> Located:

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 import serial
 
-from emulator.control import ControlClient, ControlFailure
+from emulator.control_client import ControlClient, ControlFailure
 from tests.support.daemon import ROOT, RunningDaemon, start_daemon
 
 PROBE = ROOT / "tests" / "support" / "probe.yaml"
@@ -88,11 +88,11 @@ def test_host_settings_are_seen_by_the_device(probe_daemon: RunningDaemon) -> No
     with serial.Serial(probe_daemon.port("probe"), 19200, stopbits=2, rtscts=True, timeout=2) as port:
         assert ask(port, b"E x\r", 2) == b"x\r"
         assert (
-            client.get("probe", "host") == "19200 ??2 rtscts"
+            client.get("probe", "host") == "19200 ??2 rtscts (data bits, parity not visible)"
         )  # parity and data bits are invisible on a PTY
         port.baudrate = 4800
         assert ask(port, b"E y\r", 2) == b"y\r"
-        assert client.get("probe", "host") == "4800 ??2 rtscts"
+        assert client.get("probe", "host") == "4800 ??2 rtscts (data bits, parity not visible)"
     listing = {d["device"]: d for d in client.list()}
     assert listing["probe"]["family"] == "probe"
 

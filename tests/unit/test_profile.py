@@ -23,6 +23,7 @@ from emulator.schema import (
     Section,
     Str,
     describe_rows,
+    every_error,
     extend,
     required,
     setting,
@@ -251,3 +252,58 @@ def test_extend_adds_run_time_fields_in_place_and_swaps_sections() -> None:
     assert [(row.path, row.value, row.rule) for row in describe_rows(outer)][-1] == ("axis.ratio", 3, "R-5")
     with pytest.raises(SchemaError, match="unknown key; allowed here: gain, pitch, ratio"):
         Section(extend(Outer, [], sections={"axis": axis})).check({"axis": {"nope": 1}}, ())
+
+
+def test_every_problem_of_a_profile_is_raised_in_file_order(tmp_path: Path) -> None:
+    """A readable profile's problems come together (`problems`), by line; the message is the first."""
+    path = write(
+        tmp_path,
+        "many.yaml",
+        "knobs:\n  pace_line: 3\nline:\n  baud: 14400\n  parity: mark\nspec: 1\ndevice: probe\nzoom: 2\n",
+    )
+    with pytest.raises(ProfileError) as info:
+        load_profile(str(path))
+    texts = [p.text.split(": ", 2)[:2] for p in info.value.problems]
+    assert texts == [
+        [f"{path}:2", "knobs.pace_line"],
+        [f"{path}:4", "line.baud"],
+        [f"{path}:5", "line.parity"],
+        [f"{path}:8", "zoom"],
+    ]
+    assert str(info.value) == info.value.problems[0].text
+
+
+def test_problems_of_the_file_come_before_those_of_its_parent(tmp_path: Path) -> None:
+    write(tmp_path, "parent.yaml", "spec: 1\ndevice: probe\nknobs:\n  oops: 1\n")
+    child = write(tmp_path, "child.yaml", "spec: 1\nextends: parent.yaml\n\n\n\nline: {baud: 1}\n")
+    with pytest.raises(ProfileError) as info:
+        load_profile(str(child))
+    assert [p.text.split(": ")[0] for p in info.value.problems] == [
+        f"{child}:6",
+        f"{tmp_path / 'parent.yaml'}:4",
+    ]
+
+
+def test_sections_lists_and_maps_report_every_bad_item() -> None:
+    @dataclass(frozen=True)
+    class Inner(Schema):
+        n: int = setting(Int(0, 9), 0)
+
+    @dataclass(frozen=True)
+    class Outer(Schema):
+        items: tuple[int, ...] = setting(ListOf(Int(0, 9)), ())
+        table: dict[str, Inner] = setting(MapOf(Str(), Section(Inner)), {})
+        size: float = setting(Float(0, 1), 0.5)
+
+    value = {"items": [1, 10, 2, 11], "table": {"a": {"n": 12}, "b": {"n": 3, "m": 1}}, "size": 2, "x": 0}
+    with pytest.raises(SchemaError) as info:
+        Section(Outer).check(value, ())
+    assert [e.path for e in every_error(info.value)] == [
+        ("x",),
+        ("items", 1),
+        ("items", 3),
+        ("table", "a", "n"),
+        ("table", "b", "m"),
+        ("size",),
+    ]
+    assert info.value.path == ("x",)  # as one SchemaError it is the first

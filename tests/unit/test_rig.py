@@ -47,3 +47,22 @@ def test_rig_description_is_one_line(tmp_path: Path) -> None:
     rig = tmp_path / "rig.yaml"
     rig.write_text(f'spec: 1\ndescription: "a\\nb"\ndevices: [{{name: a, profile: {PROBE}}}]\n')
     assert rig_error(rig) == f"{rig}:2: description: 'a\\nb' is not one line of printable text"
+
+
+def test_every_cross_device_problem_is_found_at_its_device(tmp_path: Path) -> None:
+    """Each repeat is reported (not only the first), at the entry of the later device."""
+    rig = tmp_path / "rig.yaml"
+    rig.write_text(
+        "spec: 1\n"
+        "devices:\n"
+        f"  - {{name: a, profile: {PROBE}, ports: [{{link: x}}]}}\n"
+        f"  - {{name: a, profile: {PROBE}}}\n"
+        f"  - {{name: b, profile: {PROBE}, ports: [{{link: x}}, {{channel: aux}}]}}\n"
+    )
+    with pytest.raises(ProfileError) as info:
+        load_rig(rig)
+    assert [p.text for p in info.value.problems] == [
+        f"{rig}:4: devices[1]: device name 'a' is used twice",
+        f"{rig}:5: devices[2]: device 'b' has no channel 'aux' (it has: main)",
+        f"{rig}:5: devices[2]: link {tmp_path / 'x'} is used by two ports",
+    ]

@@ -12,6 +12,7 @@ from rich.console import Console
 
 from emulator.cli import main
 from emulator.cli_view import render
+from emulator.device import HostLine
 from emulator.trafficlog import traffic_entry
 from emulator.view import EVENTS_KEPT, EXCHANGES_KEPT, ExchangeRow, ViewState, event_line
 
@@ -175,3 +176,22 @@ def test_no_daemon_is_one_line_and_exit_1(tmp_path: Path) -> None:
     assert result.exit_code == 1
     assert result.output.count("\n") == 1
     assert "cannot reach the daemon" in result.output
+
+
+def test_a_pty_host_line_says_what_is_not_visible_and_paths_are_never_cut() -> None:
+    """A PTY shows no data bits or parity: the view says so (HostLine.describe) instead of a bare
+    `9600 ??1`; a narrow terminal folds a port's path rather than cutting it."""
+    port = {
+        **LISTING[0]["ports"][0],
+        "path": "/run/user/1000/stage-emu/ms2000",
+        "host": HostLine(baud=9600, stop_bits=1, rtscts=False, xonxoff=False).describe(),
+    }
+    state = ViewState()
+    state.apply_list([{**LISTING[0], "ports": [port]}])
+    wide = Console(record=True, width=200)
+    wide.print(render(state))
+    assert "9600 ??1 (data bits, parity not visible)" in wide.export_text()
+    narrow = Console(record=True, width=80)
+    narrow.print(render(state))
+    text = narrow.export_text()
+    assert "/run/user/1" in text and "/ms2000" in text and "stage-emu…" not in text

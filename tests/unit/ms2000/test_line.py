@@ -162,6 +162,6 @@ def test_garble_model_both_directions_ms4(ms: Harness) -> None:
 def test_transport_sees_baud_declaration_keeps_parity_ms4(ms: Harness) -> None:
     ms.input("host_line", parity="even")
     ms.dev.line_changed(LineSettings(baud=9600), ms.t)
-    assert ms.get("host_line") == "9600 ?E?"
+    assert ms.get("host_line") == "9600 ?E? (data bits, stop bits not visible)"
     ms.dev.line_changed(None, ms.t)
     assert ms.get("host_line") is None
