@@ -260,10 +260,33 @@ class Axis:
         return self.speed_counts() / (self.s.accel_ms / 1000)
 
     def _next_leg(self, t: float, v: float = 0.0) -> None:
-        goal = self.legs.pop(0)
-        self.set_path(t, trajectory.plan(t, self.pos(t), v, goal, self.speed_counts(), self.accel_counts()))
-        self.schedule(self.traj.end, lambda due, goal=goal: self._leg_end(due, goal))
+        self._plan_leg(t, self.legs.pop(0), v, self.speed_counts(), self.accel_counts())
+
+    def _plan_leg(self, t: float, goal: float, v: float, vmax: float, accel: float) -> None:
+        self.set_path(t, trajectory.plan(t, self.pos(t), v, goal, vmax, accel))
+        self.schedule(self.traj.end, lambda due: self._leg_end(due, goal))
         self.host.record_sample(self, t)
+
+    def brake(self, t: float) -> bool:
+        """Ramp a commanded move down from its current velocity at the rate its ramps were planned
+        with, to rest on the first whole count the ramp reaches (never past the move's own target);
+        the move then ends there as moves end (a SCAN abort, MS-SCAN-5). False when the axis is not
+        under way (idle, or landed and waiting out `WT`)."""
+        if self.activity not in (Activity.MOVE, Activity.HOME) or not self.traj.moving(t):
+            return False
+        self.sample(t)
+        x, v = self.pos(t), self.traj.vel(t)
+        accel = self.traj.ramp_rate() or self.accel_counts()
+        rest_at = x + math.copysign(v * v / (2 * accel), v)
+        goal = math.ceil(rest_at - 1e-9) if v > 0 else math.floor(rest_at + 1e-9)
+        if (self.target - x) * (goal - self.target) > 0:  # the target comes first on the way
+            goal = self.target
+        self.target = goal
+        self.clamped = None
+        self.legs = []
+        # no faster than now: the last fraction of a count to the whole one is cruised, not sped up
+        self._plan_leg(t, float(goal), v, abs(v) or self.speed_counts(), accel)
+        return True
 
     def _leg_end(self, t: float, goal: float) -> None:
         self.timer = None

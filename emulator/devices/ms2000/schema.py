@@ -195,12 +195,6 @@ class Ms2000Knobs(Schema):
     reply_trailing_space: bool = setting(
         Bool(), False, "MS-38", "one space before the terminator of value replies"
     )
-    gate_features_by_version: bool = setting(
-        Choice((False,)),
-        False,
-        "MS-34",
-        "gate features by the version string (only false: every feature of a present module works)",
-    )
     landing_ms: float = setting(
         Float(0, MAX_MS), 0, "MS-53", "settling time after landing, before the wait time (ms)"
     )

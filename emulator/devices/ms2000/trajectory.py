@@ -91,6 +91,10 @@ class Trajectory:
     def moving(self, t: float) -> bool:
         return self._segment(t) is not None
 
+    def ramp_rate(self) -> float:
+        """The acceleration the path's ramps use (0 without ramps): a planned move has one (MS-52)."""
+        return max((abs(seg.a) for seg in self.segments), default=0.0)
+
     def critical_times(self, t0: float, t1: float) -> list[float]:
         """Times in (t0, t1) where the path may turn round or changes segment: between consecutive
         returned times (and t0, t1) the position is monotonic."""

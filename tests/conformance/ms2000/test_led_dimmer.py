@@ -31,3 +31,18 @@ def test_tv_184_duty_reaches_out0_only_in_pwm_mode(ms: Host) -> None:
     ms.ask(b"TTL Y=9\r", ACK)
     assert ms.get("ttl_out0_pwm") == 10
     ms.ask(b"LED X=101\r", b":N-4\r\n")
+
+
+def test_extra_channels_take_an_intensity(ms: Host) -> None:
+    """MS-LED-1, MS-LED-2: Micro-Manager's ASIStage LED device opens channel 1 with `LED Y=<intensity>`
+    and closes it with `LED Y=0`; 0…100 on every channel, the value reads back, 101 is `:N-4`."""
+    ms.run(
+        [
+            (b"LED Y=20\r", ACK),
+            (b"LED Y? Z?\r", b"Y=20 Z=0 :A\r\n"),
+            (b"LED Z=100 F=1\r", ACK),
+            (b"LED F=101\r", b":N-4\r\n"),
+            (b"LED Y=0\r", ACK),
+            (b"LED Y? Z? F?\r", b"Y=0 Z=100 F=1 :A\r\n"),
+        ]
+    )

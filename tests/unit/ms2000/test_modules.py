@@ -160,6 +160,35 @@ def test_led_out0_level_and_events_ms_led_1(ms: Harness) -> None:
     assert ms.cmd("LED T?") == b":N-2\r\n"
 
 
+def test_extra_channels_take_an_intensity_ms_led_1(ms: Harness) -> None:
+    """MS-LED-1: `Y`, `Z`, `F` take 0…100 like `X` (Micro-Manager's ASIStage LED device opens a
+    channel with `LED Y=20`, closes it with `LED Y=0`); the value reads back; 101 is `:N-4`."""
+    assert ms.cmd("LED Y=20") == ACK
+    assert ms.cmd("LED Z=100 F=1") == ACK
+    assert ms.cmd("LED Y? Z? F?") == b"Y=20 Z=100 F=1 :A\r\n"
+    assert ms.get("led") == {"x": 0, "y": 20, "z": 100, "f": 1}
+    assert ms.cmd("LED Y=0") == ACK
+    assert ms.cmd("LED Y?") == b"Y=0 :A\r\n"
+    assert ms.cmd("LED Z=101") == b":N-4\r\n"
+    assert ms.cmd("LED Z?") == b"Z=100 :A\r\n"
+
+
+@pytest.mark.parametrize("value", ["-1", "101", "abc", "54.5"])
+def test_extra_channels_check_values_as_x_does_ms_led_1(ms: Harness, value: str) -> None:
+    """MS-LED-1: every channel answers a bad or fractional value as `X` does."""
+    x_reply, x_value = ms.cmd(f"LED X={value}"), ms.cmd("LED X?")[1:]
+    for letter in "YZF":
+        assert (ms.cmd(f"LED {letter}={value}"), ms.cmd(f"LED {letter}?")[1:]) == (x_reply, x_value), letter
+
+
+def test_extra_channels_saved_with_ss_z_ms_led_1(ms: Harness) -> None:
+    """MS-LED-1: the intensities survive a power cycle after `SS Z`, as the duty does."""
+    assert ms.cmd("LED X=30 Y=20 Z=5 F=100") == ACK
+    assert ms.cmd("SS Z") == ACK
+    ms.input("power_cycle")
+    assert ms.cmd("LED X? Y? Z? F?") == b"X=30 Y=20 Z=5 F=100 :A\r\n"
+
+
 def test_trailing_value_out_of_range_ignored_ms_led_3(ms: Harness) -> None:
     ms.cmd("LED X=5")
     assert ms.cmd("TTL Y=9 500") == ACK
@@ -170,6 +199,13 @@ def test_plugins_registered_and_schema_fields() -> None:
     assert {"RING BUFFER", "LED DIMMER", "INO_INT"} <= set(MODULES)
     config = Section(SCHEMA).check({}, ())
     assert (config.ring_buffer_size, config.knobs.ttl_pwm_trailing_value) == (50, "apply")
+
+
+def test_version_gating_is_no_knob_ms34() -> None:
+    """MS-34: features are never gated by the version string, so no profile key pretends to turn
+    that on: a profile that still sets `gate_features_by_version` meets the unknown-key error."""
+    with pytest.raises(ProfileError, match=r"knobs\.gate_features_by_version: unknown key"):
+        Harness(overrides={"knobs": {"gate_features_by_version": False}})
 
 
 def test_unknown_module_in_profile_is_refused() -> None:

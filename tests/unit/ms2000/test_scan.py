@@ -129,8 +129,8 @@ def test_serpentine_alternates_direction_ms_scan_4_ms_scan_7(area: Harness) -> N
 
 
 def test_tv_150_stop_logs_86_ms_scan_6_ms_scan_4_ms_scan_7(area: Harness) -> None:
-    """TV-150 (MS-SCAN-6, MS-SCAN-4, MS-SCAN-7): `SN` during a scan stops it after the current move
-    (state P) and logs 86 only."""
+    """TV-150 (MS-SCAN-6, MS-SCAN-4, MS-SCAN-7): `SN` during a scan aborts it (state P while the
+    moving axis ramps down) and logs 86 only."""
     area.cmd("TTL X=1")
     area.cmd("SN")
     area.wait(0.4)
@@ -205,9 +205,12 @@ def test_halt_ends_a_scan_at_once_ms_scan_6(area: Harness) -> None:
 def test_be_f8_toggles_a_scan(area: Harness) -> None:
     """Appendix B: function 8 starts and stops a scan."""
     area.cmd("BE F=8")
-    assert area.get("scan")["state"] != "I"
+    area.wait(0.3)
+    assert area.get("scan")["state"] not in "IP"
     area.cmd("BE F=8")
-    assert area.get("scan")["state"] == "P"
+    assert area.get("scan")["state"] == "P"  # ramping down (MS-SCAN-5)
+    area.idle()
+    assert area.get("scan")["state"] == "I"
 
 
 def test_settings_saved_with_ss_z_ms_scan_2_ms_scan_3(scan: Harness) -> None:
@@ -233,3 +236,50 @@ def test_pixel_count_matches_c_of_the_fast_axis(scan: Harness) -> None:
     """MS-SCAN-2: pixels = floor(C × |stop − start| / divide)."""
     scan.cmd("NR X=-0.5 Y=0.5 Z=32")
     assert scan.cmd("NR F?") == f":A F={C // 32}\r\n".encode()
+
+
+@pytest.mark.parametrize("abort", ["button", "command"])
+def test_abort_ramps_down_at_the_move_deceleration_ms_scan_5(area: Harness, abort: str) -> None:
+    """MS-SCAN-5, MS-SCAN-6: a momentary `@` (or bare `SN`) mid-sweep brakes the fast axis from its
+    speed at the sweep's own deceleration (S / AC) and ends the scan: never faster than `S X`, at
+    rest one braking distance on, busy until then, no later line, SYNC or pixel count, 86 logged."""
+    area.cmd("S X=0.5")
+    area.cmd("NR Y=0.2")
+    area.cmd("TTL X=1")
+    area.cmd("SN")
+    x, y = area.dev.axis_named("X"), area.dev.axis_named("Y")
+    assert x is not None and y is not None
+    while area.get("scan")["state"] != "c":
+        area.wait(0.005)
+    mid_sweep = x.traj.first_reach(x.counts_of(0.0872), area.t)
+    assert mid_sweep is not None
+    area.advance(mid_sweep)
+    area.take_events()
+    speed = 0.5 * C  # counts/s
+    decel = speed / 0.070  # the ramp of the sweep: S reached in AC
+    # the abort acts on release for the button, at once for the command; the path is known till then
+    t_abort = area.t + (0.1 if abort == "button" else 0.0)
+    x_abort, v_abort = x.traj.pos(t_abort), x.traj.vel(t_abort)
+    assert v_abort == pytest.approx(speed)
+    if abort == "button":
+        area.input("button", name="at", ms=100)
+    else:
+        assert area.cmd("SN") == ACK
+    ramp_end = t_abort + v_abort / decel
+    area.advance(t_abort)
+    fastest = 0.0
+    while area.dev.busy(area.t):
+        assert area.t < ramp_end + 0.002, "still busy after the ramp"
+        assert area.get("scan")["state"] == "P"
+        fastest = max(fastest, abs(x.traj.vel(area.t)))
+        area.wait(0.001)
+    assert area.t >= ramp_end - 0.001, "idle before the ramp ended"
+    assert fastest <= speed * (1 + 1e-9)
+    assert x.pos(area.t) == pytest.approx(x_abort + v_abort**2 / (2 * decel), abs=1.0)
+    assert area.get("scan")["state"] == "I"
+    stopped_at = x.pos(area.t)
+    area.wait(5.0)
+    assert not area.dev.busy(area.t)
+    assert (x.pos(area.t), y.pos(area.t)) == (stopped_at, 0.0)
+    assert scan_events(area) == []
+    assert area.cmd("DU Y") == b"86\r:A\r\n"

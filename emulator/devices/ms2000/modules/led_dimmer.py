@@ -1,8 +1,9 @@
 """LED DIMMER: PWM brightness on TTL OUT0 (§9.8, MS-LED-1…MS-LED-3).
 
-`LED X=pct` (0–100) sets the duty, `Y`, `Z`, `F` switch extra lamp outputs (0/1); the PWM reaches
-OUT0 only in OUT0 mode 9 (`TTL Y=9`), where `TTL Y=9 <n>` also sets the duty. Queries reply
-value first: `X=10 :A`. Saved with `SS Z`.
+`LED X=pct` (0–100) sets the duty; `Y`, `Z`, `F` drive the extra lamp outputs with an intensity
+0–100 (non-zero is on, as Micro-Manager's ASIStage LED device opens them with `LED Y=<intensity>`).
+The PWM reaches OUT0 only in OUT0 mode 9 (`TTL Y=9`), where `TTL Y=9 <n>` also sets the duty.
+Queries reply value first: `X=10 :A`. Saved with `SS Z`.
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ from __future__ import annotations
 from functools import partial
 from typing import TYPE_CHECKING, Any
 
-from emulator.devices.ms2000.calls import Call, Param, Reply, one_of, run_settings, within
+from emulator.devices.ms2000.calls import Call, Param, Reply, run_settings, within
 from emulator.devices.ms2000.modules import Handler, Module, register
 from emulator.schema import Choice, Field
 from protocols.rounding import round_half_away
@@ -20,6 +21,7 @@ if TYPE_CHECKING:
 
 PWM_MODE = 9
 FACTORY = {"X": 0, "Y": 0, "Z": 0, "F": 0}
+FULL = 100  # percent; every channel takes 0…100 (MS-LED-1)
 
 
 @register
@@ -45,7 +47,7 @@ class LedDimmer(Module):
         return {"LED": self.led}
 
     def led(self, call: Call) -> Reply:
-        """LED X=0…100 duty, Y/Z/F 0 or 1 (MS-LED-1, MS-LED-2)."""
+        """LED X=0…100 duty, Y/Z/F intensities 0…100 (MS-LED-1, MS-LED-2)."""
         values = self.values
         now = call.now
 
@@ -56,13 +58,14 @@ class LedDimmer(Module):
 
             return store
 
-        params = {"X": Param(lambda: values["X"], setter("X"), within(0, 100, integer=True))}
-        for letter in "YZF":
-            params[letter] = Param(partial(values.__getitem__, letter), setter(letter), one_of(0, 1))
+        params = {
+            letter: Param(partial(values.__getitem__, letter), setter(letter), within(0, FULL, integer=True))
+            for letter in "XYZF"
+        }
         return run_settings(call, params, "XYZF", self.host.render(call.key), self.host.ack())
 
     def ttl_trailing_value(self, out_mode: int, value: float, now: float) -> None:
-        if out_mode == PWM_MODE and self.host.knobs.ttl_pwm_trailing_value == "apply" and 0 <= value <= 100:
+        if out_mode == PWM_MODE and self.host.knobs.ttl_pwm_trailing_value == "apply" and 0 <= value <= FULL:
             self.values["X"] = round_half_away(value)
 
     def out0_level(self) -> int | None:

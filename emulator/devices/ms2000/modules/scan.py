@@ -1,15 +1,16 @@
 """SCAN MODULE: raster and serpentine stage scans with SYNC and pixel-clock outputs (§9.3,
 MS-SCAN-1…MS-SCAN-7).
 
-`SN` assigns the fast and slow axes and the pattern (shared with ARRAY MODULE, scan_roles.py),
-`NR` the fast-axis start, stop and encoder divide (or a pixel count), `NV` the slow-axis start,
-stop, number of lines and overshoot factor; all are saved by `SS Z`. Bare `SN` (or `@` held over
-1 s) starts a scan made of moves of the motion model (scan_plan.py), busy throughout; bare `SN` or a
-momentary `@` stops it after the current move (state `P`), logging 86. The SYNC output
-(`scan_sync`) pulses as the fast axis crosses the start of each active sweep, and with ENC_INT's
-counting on (`TTL X=1`) the ENCODER output gives one pulse per `divide` counts of the active region,
-reported per line (`scan_pixels`); both come only from the axis the encoder jumper selects (profile
-`scan_jumper_axis`). A line whose pulse count differs from the expected one logs 85.
+`SN` assigns the fast and slow axes and the pattern (shared with ARRAY MODULE, scan_roles.py), `NR`
+the fast-axis start, stop and encoder divide (or a pixel count), `NV` the slow-axis start, stop,
+number of lines and overshoot factor; all are saved by `SS Z`. Bare `SN` (or `@` held over 1 s)
+starts a scan made of moves of the motion model (scan_plan.py), busy throughout; bare `SN` or a
+momentary `@` aborts it: the moving axis ramps down at its move's deceleration (state `P`) and the
+scan ends where it rests, logging 86. The SYNC output (`scan_sync`) pulses as the fast axis crosses
+the start of each active sweep, and with ENC_INT's counting on (`TTL X=1`) the ENCODER output gives
+one pulse per `divide` counts of the active region, reported per line (`scan_pixels`); both come
+only from the axis the encoder jumper selects (profile `scan_jumper_axis`). A line whose pulse count
+differs from the expected one logs 85.
 """
 
 from __future__ import annotations
@@ -236,15 +237,18 @@ class ScanModule(Module):
         return True
 
     def stop(self, now: float) -> None:
-        """Stop after the current move (state P), logging 86; that line logs nothing else."""
+        """Abort (MS-SCAN-5): the moving axis ramps down at its move's deceleration and the scan ends
+        when it rests (state P until then), logging 86; that line logs nothing else (MS-SCAN-6)."""
         if not self.running:
             return
         self.host.log_error(SCAN_ABORTED)
         self._cancel_timers()
         self.state = STOPPING
+        if 0 <= self.leg < len(self.legs):
+            self.legs[self.leg].axis.brake(now)
 
     def button(self, name: str, press: str, now: float) -> bool:
-        """`@` held over 1 s starts a scan on release; a press while one runs stops it (MS-SCAN-5)."""
+        """`@` held over 1 s starts a scan on release; a press while one runs aborts it (MS-SCAN-5)."""
         if name != "at":
             return False
         if self.running:
