@@ -2,27 +2,40 @@
 
 The interpreter is the client library's (protocols/clients/gcode); this is only its command line:
 read the file, plan from where the stage is, run, and say what went wrong as one line naming the
-file and line, never a traceback.
+file and line, never a traceback. The file is read a line at a time through the bounded reader
+(emulator/readers.py), never whole: `--dry-run` prints the plan as it is made, and a run reads the
+file three times (its words checked before the port is opened, its plan checked from where the
+stage is before it moves, then planned again as it is sent), so memory does not grow with it.
 """
 
 from __future__ import annotations
 
 import math
+import sys
+from collections.abc import Callable, Iterator
+from functools import partial
 from pathlib import Path
 
 import click
 import serial
 
 from emulator.cli_common import fail
+from emulator.progress import Progress
+from emulator.readers import LineReader, ReadError, empty_error, open_regular
 from protocols.clients import MS2000
 from protocols.clients.gcode import (
     ExecutionError,
     GcodeError,
     GcodeExecutor,
     Step,
-    parse_program,
-    read_program,
+    iter_blocks,
+    iter_program,
+    moving_axes,
 )
+
+WHAT = "G-code program"
+#: the longest program line read (bytes): a G-code line is tens of characters
+MAX_LINE = 64 << 10
 
 #: MS-TRACER-2: Tracer runs at 115200; the other rates MS-2 allows serve other personalities
 BAUDS = ("115200", "28800", "19200", "9600")
@@ -49,7 +62,7 @@ SECONDS = Positive("seconds")
 
 
 @click.command("gcode")
-@click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("file", type=click.Path(path_type=Path))
 @click.option("--port", metavar="PATH", help="The controller's serial port (not needed with --dry-run).")
 @click.option("--baud", type=click.Choice(BAUDS), default="115200", show_default=True, help="Baud rate.")
 @click.option("--xyz-scale", type=FACTOR, default=1.0, show_default=True, help="Multiplies every length.")
@@ -71,32 +84,64 @@ def gcode(
 
     Supported: G00-G03 (arcs by I/J/K or R), G04 P (ms), G15/G16, G17-G19, G20/G21, G90/G91,
     M03/M05 (TTL output on/off), F per minute. Coordinates are stage millimetres (inches under G20)
-    from the stage's zero; the program starts where the stage is."""
-    try:
-        text = file.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        fail(f"{file}: does not exist")
-    except (OSError, UnicodeDecodeError) as exc:
-        fail(f"{file}: cannot read it: {exc}")
+    from the stage's zero; the program starts where the stage is. A program of any length is read
+    a line at a time; on a terminal, stderr shows the lines read so far.
+
+    Exit status: 0 when the program ran (or was planned) to its end; 1, with one line on stderr,
+    when FILE is not a regular file, is empty, has a line it cannot read or run, or the controller
+    refuses or falls silent; 2 for a bad option."""
+    plan = partial(iter_program, xyz_scale=xyz_scale, speed_scale=speed_scale)
     try:
         if dry_run:
-            for step in parse_program(text, xyz_scale=xyz_scale, speed_scale=speed_scale):
-                click.echo(str(step))
+            with Progress(f"stage-emu gcode: planning {file}", enabled=not sys.stdout.isatty()) as progress:
+                _print_plan(plan(_lines(file, progress)))
             return
         if port is None:
             fail("--port PATH is required (or --dry-run to only plan)")
-        read_program(text)  # a malformed line is reported before the stage is touched
-        _run(text, str(port), int(baud), timeout, xyz_scale, speed_scale, verbose)
+        for _ in iter_blocks(_lines(file)):  # a malformed line is reported before the port is opened
+            pass
+        _run(file, str(port), int(baud), timeout, plan, verbose)
+    except ReadError as exc:
+        fail(str(exc))
     except GcodeError as exc:
         fail(f"{file}:{exc.line}: {exc.message}")
     except ExecutionError as exc:
         fail(f"{file}:{exc.line}: {exc.message}" if exc.line is not None else f"{port}: {exc.message}")
     except KeyboardInterrupt:
-        fail("interrupted: a running program was halted and its TTL output switched off")
+        fail(
+            "interrupted"
+            if dry_run
+            else "interrupted: a running program was halted and its TTL output switched off"
+        )
+
+
+def _lines(file: Path, progress: Progress | None = None) -> Iterator[str]:
+    """The program's lines as text, read as they are needed; ReadError for a file that is not a
+    regular one, a line too long or not UTF-8, and a file without a single non-blank line."""
+    found = False
+    with open_regular(file, WHAT) as opened:
+        for number, data in LineReader(opened, file, WHAT, max_line=MAX_LINE, keep_last=True):
+            if progress is not None:
+                progress.tick()
+            try:
+                text = data.decode("utf-8")
+            except UnicodeDecodeError:
+                raise ReadError(f"{file}:{number}: not a {WHAT}: not UTF-8 text") from None
+            found = found or bool(text.strip())
+            yield text
+    if not found:
+        raise empty_error(file, WHAT)
+
+
+def _print_plan(steps: Iterator[Step]) -> None:
+    write = sys.stdout.write
+    for step in steps:
+        write(f"{step}\n")
+    sys.stdout.flush()
 
 
 def _run(
-    text: str, port: str, baud: int, timeout: float, xyz_scale: float, speed_scale: float, verbose: bool
+    file: Path, port: str, baud: int, timeout: float, plan: Callable[..., Iterator[Step]], verbose: bool
 ) -> None:
     try:
         stage = MS2000(port, baud, timeout)
@@ -106,14 +151,15 @@ def _run(
         executor = GcodeExecutor(stage)
         counts = executor.counts_per_mm()
         click.echo("counts per mm: " + " ".join(f"{a}={c:g}" for a, c in counts.items()))
-        steps = parse_program(
-            text, start=executor.start_position(), xyz_scale=xyz_scale, speed_scale=speed_scale
-        )
+        start = executor.start_position()
+        axes = moving_axes(plan(_lines(file), start=start))  # the whole plan checked before a move
+        with Progress(f"stage-emu gcode: running {file}", enabled=not verbose) as progress:
 
-        def show(step: Step) -> None:
-            click.echo(str(step))
+            def show(step: Step) -> None:
+                if verbose:
+                    click.echo(str(step))
 
-        summary = executor.run(steps, show if verbose else None)
+            summary = executor.run(plan(_lines(file, progress), start=start), show, axes=axes)
     click.echo(
         f"done: {summary.moves} moves, {summary.dwells} dwells, {summary.outputs} output changes "
         f"in {summary.seconds:.1f} s"

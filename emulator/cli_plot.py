@@ -1,20 +1,24 @@
 """`stage-emu plot TRAFFIC_LOG -o path.svg|png`: the path of a served session, drawn from the device's
 own `move` records in a `--log-traffic` file (emulator/plot.py reads it, emulator/plot_figure.py draws
 it), or for a CRISP or AUTOFOCUS session its focus over time (emulator/plot_focus.py,
-emulator/plot_focus_figure.py). matplotlib is an optional extra, imported only here; every failure is
-one line, exit 1.
+emulator/plot_focus_figure.py). The log is read in one pass and bounded memory (emulator/plot_scan.py)
+before matplotlib, an optional extra, is imported, and only to draw; every failure is one line,
+exit 1.
 """
 
 from __future__ import annotations
 
+import importlib.util
 import sys
 from pathlib import Path
 
 import click
 
 from emulator.cli_common import fail
-from emulator.plot import LogError, read_records, session_from
-from emulator.plot_focus import Focus, focus_device, focus_of
+from emulator.plot_focus import Focus
+from emulator.plot_scan import focus_device, focus_of, read_log, session_from
+from emulator.progress import Progress
+from emulator.readers import ReadError
 
 NEEDS_MATPLOTLIB = "stage-emu plot needs matplotlib: pip install 'stage-emu[plot]'"
 FORMATS = (".png", ".svg")
@@ -54,26 +58,33 @@ def plot(
 
     A CRISP or AUTOFOCUS session is drawn over time instead: the focus axis (with CRISP's surface),
     the focus error and its in-focus band (or AUTOFOCUS's focus value), CRISP's states and
-    AUTOFOCUS's runs."""
+    AUTOFOCUS's runs.
+
+    A long log is thinned to a few thousand points per series (the first, last, lowest and highest
+    of each stretch of time), so the path keeps its extent and shape. On a terminal, stderr shows
+    the lines read so far.
+
+    Exit status: 0 when the figure is written; 1, with one line on stderr, when TRAFFIC_LOG is not
+    a regular file, is empty or no traffic log (a line too long or nested too deep included), holds
+    nothing to draw, or the figure cannot be written."""
     if output.suffix.lower() not in FORMATS:
         fail(f"{output}: the output must end in .png or .svg")
-    try:
-        import matplotlib
-    except ImportError:
+    if _missing("matplotlib"):
         click.echo(NEEDS_MATPLOTLIB, err=True)
         sys.exit(1)
+    try:
+        with Progress(f"stage-emu plot: reading {traffic_log}") as progress:
+            scan = read_log(traffic_log, progress.tick)
+        wanted = focus if focus is not None else focus_device(scan, device) is not None
+        drawn = focus_of(traffic_log, scan, device) if wanted else session_from(traffic_log, scan, device)
+    except ReadError as exc:
+        fail(str(exc))
+    import matplotlib
+
     matplotlib.use("Agg")
     from emulator.plot_figure import draw
     from emulator.plot_focus_figure import draw_focus
 
-    try:
-        records = read_records(traffic_log)
-        wanted = focus if focus is not None else focus_device(records, device) is not None
-        drawn = (
-            focus_of(traffic_log, records, device) if wanted else session_from(traffic_log, records, device)
-        )
-    except LogError as exc:
-        fail(str(exc))
     session = drawn.session if isinstance(drawn, Focus) else drawn
     try:
         if isinstance(drawn, Focus):
@@ -83,3 +94,11 @@ def plot(
     except OSError as exc:
         fail(f"{output}: cannot write it: {exc.strerror or exc}")
     click.echo(f"{output}: {session.device}, {session.end - session.start:.2f} s of device time")
+
+
+def _missing(module: str) -> bool:
+    """Whether `module` cannot be imported (looked up, not imported: matplotlib takes a while)."""
+    try:
+        return importlib.util.find_spec(module) is None
+    except (ImportError, ValueError):  # a module set to None in sys.modules, or a broken install
+        return True

@@ -17,7 +17,9 @@ from emulator.cli_common import fail
 from emulator.device import LineSettings
 from emulator.line import REALISTIC, TIMINGS
 from emulator.profile import ProfileError, load_profile
+from emulator.progress import Progress
 from emulator.proxy import Proxy, ProxyError, ProxyOptions
+from emulator.readers import ReadError
 from emulator.replay import (
     DEFAULT_TOLERANCE_S,
     ReplayError,
@@ -106,7 +108,7 @@ def proxy(
 
 
 @click.command("replay")
-@click.argument("session_file", metavar="SESSION", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("session_file", metavar="SESSION", type=click.Path(path_type=Path))
 @click.option("--profile", metavar="NAME", help="Emulate this profile (default: the session's).")
 @click.option("--port", "port_url", metavar="PORT", help="Replay on this port (a controller) instead.")
 @click.option("--baud", type=BAUD, help="The --port controller's baud rate, if not the session's.")
@@ -140,11 +142,16 @@ def replay_command(
 ) -> None:
     """Play the host side of SESSION (from `stage-emu proxy --record`) on the emulator, or on a
     controller with --port, and print each exchange whose reply differs, in bytes or in timing
-    beyond the tolerance, then a summary line. Exit 0: no difference; 1: differences; 2: bad
-    input (a malformed session, a profile or port that cannot be used)."""
+    beyond the tolerance, then a summary line. The session is read a line at a time, never whole;
+    on a terminal, stderr shows the lines checked, then the host writes replayed.
+
+    Exit status: 0 no difference; 1 differences; 2, with one line on stderr, bad input: SESSION
+    not a regular file, empty, or not a session (a line too long or nested too deep included), or
+    a profile or port that cannot be used."""
     logging.basicConfig(level=logging.WARNING, format="stage-emu: %(message)s", stream=sys.stderr)
     try:
-        session = load_session(session_file)
+        with Progress(f"stage-emu replay: checking {session_file}") as progress:
+            session = load_session(session_file, progress.tick)
         header = session.header
         if port_url is None:
             name = profile or header.profile
@@ -160,10 +167,11 @@ def replay_command(
         port = open_port(url, line)
         try:
             options = ReplayOptions(tolerance_ms / 1000, timing=port_url is not None or timing == REALISTIC)
-            result = replay(session, port, options)
+            with Progress(f"stage-emu replay: replaying {session_file}", "host writes") as progress:
+                result = replay(session, port, options, progress.tick)
         finally:
             port.close()
-    except (SessionError, ReplayError) as exc:
+    except (ReadError, ReplayError) as exc:
         fail(str(exc), 2)
     for text in result.report():
         click.echo(text)

@@ -1,5 +1,6 @@
 """`stage-emu trace TRAFFIC_LOG [--follow]`: a `--log-traffic` file as readable exchanges, one line
-each (emulator/trace.py reads and pairs). Every failure is one line, exit 1.
+each (emulator/trace.py reads and pairs). Every failure is one line, exit 1: a file that is not
+a regular file, a line too long or nested too deep, a file with no record (without --follow).
 """
 
 from __future__ import annotations
@@ -15,8 +16,8 @@ from pathlib import Path
 import click
 
 from emulator.cli_common import fail
+from emulator.readers import ReadError
 from emulator.trace import EVENT_CHOICES, TraceNotes, TraceOptions, trace_lines
-from emulator.trace_reader import TraceError
 
 
 @contextmanager
@@ -49,7 +50,12 @@ def trace(traffic_log: Path, follow: bool, device: str | None, port: str | None,
     the device read it (its summary and bytes), the reply's bytes and what it says, and the latency
     from the request's last byte to the reply's last byte. Bytes the device garbled, never heard
     (LOST) or found outside any command (STRAY), unsolicited output and device events (`*`) get
-    lines of their own."""
+    lines of their own.
+
+    Exit status: 0 when the log was read to its end (or --follow was stopped with Ctrl-C); 1, with
+    one line on stderr, when TRAFFIC_LOG is not a regular file, is not a traffic log, holds no record
+    (without --follow, which waits for them), has a line too long or nested too deep, or a filter
+    names nothing in it."""
     options = TraceOptions(device=device, port=port, events=events)
     notes = TraceNotes()
     stop = threading.Event()
@@ -59,7 +65,7 @@ def trace(traffic_log: Path, follow: bool, device: str | None, port: str | None,
                 _echo_all(traffic_log, options, follow, stop, notes)
         else:
             _echo_all(traffic_log, options, follow, stop, notes)
-    except TraceError as exc:
+    except ReadError as exc:
         fail(str(exc))
     except KeyboardInterrupt:  # Ctrl-C while reading a long log without --follow
         sys.exit(130)

@@ -1,30 +1,34 @@
 """A session read back from a traffic log (emulator/trafficlog.py) for `stage-emu plot`: where each
 axis was over time, from the device's own `move` records, and what happened on the way.
 
-Pure (no matplotlib): `read_session` gives a `Session` whose `Track`s interpolate an axis's position
-at any device time, linearly between the knots of its latest `move` record (a later record
-supersedes an earlier one from its first knot on), and whose event lists hold ARRAY arrivals, SCAN
-sync and pixel-count marks and OUT0 (laser) edges. `sample_times` lists the instants between which
-every path is a straight line, so a polyline through them is the path itself.
+Pure (no matplotlib): a `Session` has `Track`s that interpolate an axis's position at any device
+time, linearly between the knots of its latest `move` record (a later record supersedes an earlier
+one from its first knot on), and event lists of ARRAY arrivals, SCAN sync and pixel-count marks and
+OUT0 (laser) edges. `sample_times` lists the instants between which every path is a straight line,
+so a polyline through them is the path itself.
+
+A `PathBuilder` gathers a session record by record (emulator/plot_scan.py reads the log) in bounded
+memory: an axis keeps at most `POINTS` knots and each event list as many; a longer log is thinned by
+time buckets (emulator/decimate.py) that keep each bucket's first, last, lowest and highest knots,
+so the drawn path keeps its extent and its shape.
 """
 
 from __future__ import annotations
 
 import bisect
 import itertools
-import json
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from functools import cached_property
-from pathlib import Path
 from typing import Any
 
-from emulator.trace import parse_record
+from emulator.decimate import Buckets, ends, extremes
+from emulator.readers import ReadError
 from emulator.trafficlog import MOVE
 
 
-class LogError(Exception):
+class LogError(ReadError):
     """A traffic log that cannot be plotted; the message is one line naming the file."""
 
 
@@ -121,12 +125,16 @@ class Session:
         track = self.tracks.get(axis)
         return track is not None and track.moved()
 
+    @cached_property
+    def _laser_times(self) -> list[float]:
+        return [edge for edge, _ in self.laser]
+
     def laser_on(self, t: float) -> bool | None:
         """OUT0's level at `t`; None when the log has no OUT0 edge. Before the first edge the level
         is the opposite of that edge's."""
         if not self.laser:
             return None
-        i = bisect.bisect_right([edge for edge, _ in self.laser], t)
+        i = bisect.bisect_right(self._laser_times, t)
         return bool(self.laser[i - 1][1]) if i else not self.laser[0][1]
 
     def sample_times(self) -> list[float]:
@@ -138,99 +146,106 @@ class Session:
         return sorted(t for t in times if self.start <= t <= self.end)
 
 
-def read_records(path: Path) -> list[dict[str, Any]]:
-    """The log's records; a last line cut short (the daemon stopped mid-write) is left out."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise LogError(f"{path}: does not exist") from None
-    except IsADirectoryError:
-        raise LogError(f"{path}: is a directory, not a traffic log") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise LogError(f"{path}: cannot read it: {exc}") from None
-    lines = text.splitlines()
-    records: list[dict[str, Any]] = []
-    for number, line in enumerate(lines, 1):
-        if not line.strip():
-            continue
-        try:
-            record = json.loads(line)
-        except json.JSONDecodeError:
-            if number == len(lines) and not text.endswith("\n"):
+#: knots an axis keeps, and events of each kind: a long log is thinned to this (emulator/decimate.py)
+POINTS = 2000
+#: the latest legs of an axis kept as they came (up to half its knots): a record written late (a
+#: halt's, after its settle time) still finds the legs it supersedes or follows
+RECENT_LEGS = 32
+
+
+class TrackBuilder:
+    """One axis's legs as the log gives them, in start order (a stable insertion: records of one
+    instant keep their order, the last one standing). Past twice `limit` knots, all but the latest
+    legs (at most `RECENT_LEGS`, with at most half of `limit` knots) are flattened into one leg
+    (what the track says, knot by knot) thinned to min/max per time bucket: `limit` knots at most
+    are left, and each thinning has twice as many knots to spare before the next."""
+
+    def __init__(self, limit: int = POINTS) -> None:
+        self.limit = limit
+        self.legs: list[Leg] = []
+        self._starts: list[float] = []
+        self._knots = 0
+
+    def add(self, leg: Leg) -> None:
+        at = bisect.bisect_right(self._starts, leg.start)
+        self.legs.insert(at, leg)
+        self._starts.insert(at, leg.start)
+        self._knots += len(leg.knots)
+        if self._knots > 2 * self.limit:
+            self._compact()
+
+    def _compact(self) -> None:
+        keep, knots = 0, 0
+        for leg in reversed(self.legs[-RECENT_LEGS:]):
+            if knots + len(leg.knots) > self.limit // 2:
                 break
-            raise LogError(f"{path}:{number}: not a traffic log (not a JSON record)") from None
-        try:
-            parse_record(line)  # the one check of a record's form, shared with `stage-emu trace`
-        except ValueError as exc:
-            raise LogError(f"{path}:{number}: not a traffic log record ({exc})") from None
-        records.append(record)
-    if not records:
-        raise LogError(f"{path}: empty, no traffic log records")
-    return records
+            keep, knots = keep + 1, knots + len(leg.knots)
+        old, recent = self.legs[: len(self.legs) - keep], self.legs[len(self.legs) - keep :]
+        flat: Buckets[tuple[float, float]] = Buckets(self.limit // 2, extremes)
+        # each old leg holds until the next one starts; the last, if none follows, for ever
+        untils = [after.start for after in [*old[1:], *recent[:1]]]
+        untils += [math.inf] * (len(old) - len(untils))
+        for leg, until in zip(old, untils, strict=True):
+            kept = [(t, x) for t, x in leg.knots if t < until]
+            if leg.cruise and kept and until < math.inf:  # where the cruise had taken it by then
+                kept.append((until, leg.at(until)))
+            for t, x in kept:
+                flat.add(t, (t, x), x)
+        cruise = 0.0 if recent else old[-1].cruise
+        # legs wholly superseded (by one of the same instant) leave nothing behind
+        self.legs = [Leg(tuple(flat.items()), cruise), *recent] if flat.added else recent
+        self._starts = [leg.start for leg in self.legs]
+        self._knots = sum(len(leg.knots) for leg in self.legs)
+
+    def track(self) -> Track:
+        return Track(tuple(self.legs))
 
 
-def _number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+class PathBuilder:
+    """What `stage-emu plot` draws of one device, gathered record by record in bounded memory."""
 
+    def __init__(self, device: str) -> None:
+        self.device = device
+        self.start = math.inf
+        self.end = -math.inf
+        self.tracks: dict[str, TrackBuilder] = {}
+        self.arrivals: Buckets[Arrival] = Buckets(POINTS, ends)
+        self.scan_marks: Buckets[ScanMark] = Buckets(POINTS, ends)
+        self.laser: Buckets[tuple[float, int]] = Buckets(POINTS, extremes)
 
-def read_session(path: Path, device: str | None = None) -> Session:
-    """The session of `device` (default: the only device with `move` records) in the log at `path`."""
-    return session_from(path, read_records(path), device)
-
-
-def session_from(path: Path, records: list[dict[str, Any]], device: str | None = None) -> Session:
-    """`read_session` of the records read from `path`."""
-    devices = sorted({r["device"] for r in records})
-    if device is not None and device not in devices:
-        raise LogError(f"{path}: no device {device!r} (the log holds: {', '.join(devices)})")
-    moving = sorted({r["device"] for r in records if r.get("ev") == MOVE})
-    if device is None:
-        if not moving:
-            raise LogError(f"{path}: no move records: was it written by `stage-emu serve --log-traffic`?")
-        if len(moving) > 1:
-            several = ", ".join(moving)
-            raise LogError(f"{path}: moves of several devices ({several}): choose one with --device")
-        device = moving[0]
-    elif device not in moving:
-        raise LogError(f"{path}: no move records of device {device!r}")
-    return session_of(path, device, records)
-
-
-def session_of(path: Path, device: str, records: list[dict[str, Any]]) -> Session:
-    """`device`'s session from the records of the log at `path`; `Session.tracks` may be empty."""
-    own = sorted((r for r in records if r["device"] == device), key=lambda r: r["t"])
-    try:
-        return _session(device, own)
-    except (TypeError, ValueError, KeyError, IndexError) as exc:
-        raise LogError(f"{path}: a malformed {device} event record ({exc})") from None
-
-
-def _session(device: str, records: list[dict[str, Any]]) -> Session:
-    legs: dict[str, list[Leg]] = {}
-    session = Session(device, {}, records[0]["t"], records[-1]["t"])
-    for record in records:
+    def feed(self, record: dict[str, Any]) -> None:
+        """One record of this device (already checked as a traffic record)."""
+        t = float(record["t"])
+        self.start, self.end = min(self.start, t), max(self.end, t)
         if record["dir"] != "ev":
-            continue
-        ev, t = record.get("ev"), record["t"]
+            return
+        ev = record.get("ev")
         if ev == MOVE:
             for axis, leg in _legs(record):
-                legs.setdefault(axis, []).append(leg)
+                self.tracks.setdefault(axis, TrackBuilder()).add(leg)
+                self.start = min(self.start, leg.start)
         elif ev == "array_arrival":
-            session.arrivals.append(Arrival(t, len(session.arrivals) + 1, int(record["i"]), int(record["j"])))
+            arrival = Arrival(t, self.arrivals.added + 1, int(record["i"]), int(record["j"]))
+            self.arrivals.add(t, arrival)
         elif ev == "scan_sync":
-            session.scan_marks.append(ScanMark(t, int(record["line"])))
+            self.scan_marks.add(t, ScanMark(t, int(record["line"])))
         elif ev == "scan_pixels":
-            session.scan_marks.append(ScanMark(t, int(record["line"]), int(record["count"])))
+            self.scan_marks.add(t, ScanMark(t, int(record["line"]), int(record["count"])))
         elif ev == "ttl_out0":
-            session.laser.append((t, int(record["level"])))
-    # a stable sort: records of one instant keep their order, the last one standing
-    session.tracks = {axis: Track(tuple(sorted(own, key=_start))) for axis, own in legs.items()}
-    session.start = min([session.start, *(track.legs[0].start for track in session.tracks.values())])
-    return session
+            level = int(record["level"])
+            self.laser.add(t, (t, level), level)
 
-
-def _start(leg: Leg) -> float:
-    return leg.start
+    def session(self) -> Session:
+        """The session so far (ARRAY cells keep their arrival numbers when thinned)."""
+        return Session(
+            self.device,
+            {axis: builder.track() for axis, builder in self.tracks.items()},
+            self.start,
+            self.end,
+            self.arrivals.items(),
+            self.scan_marks.items(),
+            self.laser.items(),
+        )
 
 
 def _legs(record: dict[str, Any]) -> Iterable[tuple[str, Leg]]:

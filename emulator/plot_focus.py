@@ -1,22 +1,24 @@
 """A CRISP or AUTOFOCUS session read back from a traffic log for `stage-emu plot`'s focus figure
 (emulator/plot_focus_figure.py draws it).
 
-Pure (no matplotlib). `read_focus` gives a `Focus`: the session (emulator/plot.py) whose focus-axis
-track comes from the `move` records; CRISP's state changes (`crisp` events, each with the in-focus
-band), its focus error and the surface's place (each state change's reading and, while the log was
-kept, each lock-loop update's `crisp_sample`); AUTOFOCUS's runs (`af_start`, `af_end` with its
-result) and the focus value of each video frame scanned (`af_sample`).
+Pure (no matplotlib). A `Focus` is the session (emulator/plot.py) whose focus-axis track comes from
+the `move` records; CRISP's state changes (`crisp` events, each with the in-focus band), its focus
+error and the surface's place (each state change's reading and, while the log was kept, each
+lock-loop update's `crisp_sample`); AUTOFOCUS's runs (`af_start`, `af_end` with its result) and the
+focus value of each video frame scanned (`af_sample`). `FocusBuilder` gathers one record by record
+(emulator/plot_scan.py reads the log).
 """
 
 from __future__ import annotations
 
 import bisect
-from dataclasses import dataclass, field
-from pathlib import Path
+import math
+from dataclasses import dataclass, field, replace
 from typing import Any
 
-from emulator.plot import LogError, Session, read_records, session_of
-from emulator.trafficlog import AF_SAMPLE, CRISP_SAMPLE, MOVE
+from emulator.decimate import Buckets, ends, extremes
+from emulator.plot import POINTS, Session
+from emulator.trafficlog import AF_SAMPLE, CRISP_SAMPLE
 
 CRISP_STATE = "crisp"
 AF_START, AF_END = "af_start", "af_end"
@@ -100,80 +102,62 @@ class Focus:
         return self.states[i - 1] if i else None
 
 
-def focus_device(records: list[dict[str, Any]], device: str | None) -> str | None:
-    """The device `stage-emu plot` draws a focus figure of without being told: `device` (else the
-    log's only device with move or focus records) when it has CRISP or AUTOFOCUS records."""
-    if device is None:
-        drawn = {r["device"] for r in records if r.get("ev") == MOVE or r.get("ev") in FOCUS_EVENTS}
-        if len(drawn) != 1:
-            return None
-        device = drawn.pop()
-    return device if any(r["device"] == device and r.get("ev") in FOCUS_EVENTS for r in records) else None
+class FocusBuilder:
+    """A device's focus story gathered record by record in bounded memory: each list keeps at most
+    `POINTS` items, a longer log thinned by time buckets (the samples and readings by min/max)."""
 
+    def __init__(self) -> None:
+        self.axis = DEFAULT_AXIS
+        self._axis_t = -math.inf
+        self.states: Buckets[StateChange] = Buckets(POINTS, ends)
+        self.readings: Buckets[Reading] = Buckets(POINTS, extremes)
+        self.runs: Buckets[AfRun] = Buckets(POINTS, ends)
+        self.samples: Buckets[AfSample] = Buckets(POINTS, extremes)
+        #: the run started and not yet ended
+        self._open: AfRun | None = None
+        #: ends whose start the log did not see: they start with the session
+        self._headless: list[AfRun] = []
 
-def read_focus(path: Path, device: str | None = None) -> Focus:
-    """The focus session of `device` (default: the only device with focus records) in the log."""
-    return focus_of(path, read_records(path), device)
-
-
-def focus_of(path: Path, records: list[dict[str, Any]], device: str | None = None) -> Focus:
-    devices = sorted({r["device"] for r in records})
-    if device is not None and device not in devices:
-        raise LogError(f"{path}: no device {device!r} (the log holds: {', '.join(devices)})")
-    focusing = sorted({r["device"] for r in records if r.get("ev") in FOCUS_EVENTS})
-    if device is None:
-        if not focusing:
-            raise LogError(f"{path}: no CRISP or AUTOFOCUS records: was the device served with either?")
-        if len(focusing) > 1:
-            several = ", ".join(focusing)
-            raise LogError(f"{path}: focus records of several devices ({several}): choose one with --device")
-        device = focusing[0]
-    elif device not in focusing:
-        raise LogError(f"{path}: no CRISP or AUTOFOCUS records of device {device!r}")
-    focus = Focus(session_of(path, device, records))
-    own = sorted((r for r in records if r["device"] == device and r.get("ev") in FOCUS_EVENTS), key=_time)
-    try:
-        for record in own:
-            _read(focus, record)
-    except (TypeError, ValueError, KeyError) as exc:
-        raise LogError(f"{path}: a malformed {device} focus record ({exc})") from None
-    return focus
-
-
-def _time(record: dict[str, Any]) -> float:
-    return float(record["t"])
-
-
-def _read(focus: Focus, record: dict[str, Any]) -> None:
-    ev, t = record["ev"], float(record["t"])
-    if record.get("axis"):
-        focus.axis = str(record["axis"])
-    if ev in (CRISP_STATE, CRISP_SAMPLE):
-        focus.readings.append(Reading(t, float(record["error"]), float(record["surface_um"])))
-    if ev == CRISP_STATE:
-        focus.states.append(StateChange(t, str(record["state"]), float(record["in_focus_counts"])))
-    elif ev == AF_START:
-        focus.runs.append(AfRun(t, bool(record["calibrating"])))
-    elif ev == AF_END:
-        peak, peak_um = record.get("peak"), record.get("peak_um")
-        run = (
-            focus.runs.pop()
-            if focus.runs and focus.runs[-1].end is None
-            else AfRun(focus.session.start, False)
-        )
-        focus.runs.append(
-            AfRun(
-                run.start,
+    def feed(self, record: dict[str, Any]) -> None:
+        """One focus record of this device (`ev` in FOCUS_EVENTS)."""
+        ev, t = record["ev"], float(record["t"])
+        if record.get("axis") and t >= self._axis_t:  # the latest record naming an axis decides
+            self.axis, self._axis_t = str(record["axis"]), t
+        if ev in (CRISP_STATE, CRISP_SAMPLE):
+            reading = Reading(t, float(record["error"]), float(record["surface_um"]))
+            self.readings.add(t, reading, reading.error)
+        if ev == CRISP_STATE:
+            self.states.add(t, StateChange(t, str(record["state"]), float(record["in_focus_counts"])))
+        elif ev == AF_START:
+            if self._open is not None:
+                self.runs.add(self._open.start, self._open)
+            self._open = AfRun(t, bool(record["calibrating"]))
+        elif ev == AF_END:
+            peak, peak_um = record.get("peak"), record.get("peak_um")
+            run = AfRun(
+                math.nan if self._open is None else self._open.start,
                 bool(record["calibrating"]),
                 t,
                 str(record["result"]),
                 None if peak is None else float(peak),
                 None if peak_um is None else float(peak_um),
             )
-        )
-    elif ev == AF_SAMPLE:
-        filtered = record.get("filtered")
-        value = float(record["value"])
-        focus.samples.append(
-            AfSample(t, float(record["z_um"]), value, None if filtered is None else float(filtered))
+            self._open = None
+            if math.isnan(run.start):
+                self._headless.append(run)
+            else:
+                self.runs.add(run.start, run)
+        elif ev == AF_SAMPLE:
+            filtered = record.get("filtered")
+            value = float(record["value"])
+            sample = AfSample(t, float(record["z_um"]), value, None if filtered is None else float(filtered))
+            self.samples.add(t, sample, value)
+
+    def focus(self, session: Session) -> Focus:
+        headless = [replace(run, start=session.start) for run in self._headless[:POINTS]]
+        runs = sorted([*headless, *self.runs.items()], key=lambda run: run.start)
+        if self._open is not None:
+            runs.append(self._open)
+        return Focus(
+            session, self.axis, self.states.items(), self.readings.items(), runs, self.samples.items()
         )

@@ -11,10 +11,11 @@ wire time are both checked. Device output outside any exchange (unsolicited) is 
 
 from __future__ import annotations
 
+import itertools
 import threading
 import time
 from bisect import bisect_left
-from collections.abc import Callable
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from urllib.parse import quote
@@ -24,7 +25,7 @@ import serial
 import emulator.urlhandler  # noqa: F401  (registers stageemu:// with pyserial)
 from emulator.device import HostLine, LineSettings
 from emulator.profile import ProfileError, load_profile
-from emulator.session import RX, TX, Chunk, Event, LineChange, Session, decode
+from emulator.session import RX, TX, Chunk, Event, LineChange, Session, iter_decode
 from emulator.session_decode import Exchange, reply_text
 from emulator.trace import readable
 
@@ -155,29 +156,40 @@ class _Listener(threading.Thread):
             return self.chunks[index].t if index < len(self.chunks) else None
 
 
-def _host_plan(session: Session) -> list[tuple[Event, int, float]]:
-    """The host's events, each with how many device bytes had come before it and when the last of
-    them came."""
-    plan: list[tuple[Event, int, float]] = []
-    received, last = 0, 0.0
-    for event in session.events:
-        if isinstance(event, Chunk) and event.direction == TX:
-            received, last = received + len(event.data), event.t
-        else:
-            plan.append((event, received, last))
-    return plan
+@dataclass
+class _HostPlan:
+    """The host's events of a session as they are read, each with how many device bytes had come
+    before it and when the last of them came; `last_t` is the time of the last event read."""
+
+    events: Iterable[Event]
+    last_t: float = 0.0
+
+    def __iter__(self) -> Iterator[tuple[Event, int, float]]:
+        received, last = 0, 0.0
+        for event in self.events:
+            self.last_t = event.t
+            if isinstance(event, Chunk) and event.direction == TX:
+                received, last = received + len(event.data), event.t
+            else:
+                yield event, received, last
 
 
-def play(session: Session, port: serial.Serial, options: ReplayOptions) -> list[Event]:
+def play(
+    session: Session, port: serial.Serial, options: ReplayOptions, on_write: Callable[[], None] | None = None
+) -> list[Event]:
     """Play the host side of `session` on the open `port`; the replayed session's events, timed on
     the recording's scale (the host's first action happens at its recorded `t`).
 
     A host write that followed device bytes in the recording waits for as many (at most
     `wait_s`; a shortfall is then forgiven for the rest of the replay) and keeps the host's reaction
     time after them: a reply a little later than recorded must not meet a next request the host
-    only sent because it had that reply. The rest of the schedule moves by the same delay."""
-    plan = _host_plan(session)
-    origin = plan[0][0].t if plan else 0.0
+    only sent because it had that reply. The rest of the schedule moves by the same delay.
+
+    The session's events are read as they are played (`on_write` hears of each host event), so a
+    long session costs no more memory than what the device sends back."""
+    plan = _HostPlan(session.events)
+    first = next(iter(plan), None)
+    origin = first[0].t if first is not None else 0.0
     start = time.monotonic()
 
     def clock() -> float:
@@ -191,6 +203,8 @@ def play(session: Session, port: serial.Serial, options: ReplayOptions) -> list[
     listener.start()
     try:
         for event, needed, after in plan:
+            if on_write is not None:
+                on_write()
             due = event.t + lag
             wanted = int(needed - shortfall)
             if listener.count < wanted:
@@ -209,7 +223,7 @@ def play(session: Session, port: serial.Serial, options: ReplayOptions) -> list[
             elif isinstance(event, Chunk):
                 events.append(Chunk(clock(), RX, event.data))
                 port.write(event.data)
-        end = max((e.t for e in session.events), default=0.0) + lag + options.grace_s
+        end = plan.last_t + lag + options.grace_s
         listener.done.wait(max(end - clock(), 0.0))
     except (serial.SerialException, OSError) as exc:
         listener.failure = listener.failure or exc
@@ -237,14 +251,16 @@ class Slot:
         return b"".join(e.reply for e in self.after)
 
 
-def slots(exchanges: list[Exchange]) -> list[Slot]:
-    found = [Slot(0, None)]
+def slots(exchanges: Iterable[Exchange]) -> Iterator[Slot]:
+    """Each request's slot once the next request (or the end) shows it complete."""
+    slot = Slot(0, None)
     for exchange in exchanges:
         if exchange.request is None:
-            found[-1].after.append(exchange)
+            slot.after.append(exchange)
         else:
-            found.append(Slot(len(found), exchange))
-    return found
+            yield slot
+            slot = Slot(slot.number + 1, exchange)
+    yield slot
 
 
 @dataclass(frozen=True)
@@ -299,18 +315,16 @@ def _shown(family: str, slot: Slot | None) -> str:
 
 
 def compare(
-    family: str, expected: list[Exchange], got: list[Exchange], options: ReplayOptions
+    family: str, expected: Iterable[Exchange], got: Iterable[Exchange], options: ReplayOptions
 ) -> tuple[int, list[Difference]]:
-    """(exchanges compared, the differing ones)."""
-    want, have = slots(expected), slots(got)
+    """(exchanges compared, the differing ones), the two sides read side by side as they close."""
     differences = []
-    for number in range(max(len(want), len(have))):
-        a = want[number] if number < len(want) else None
-        b = have[number] if number < len(have) else None
+    number = 0
+    for number, (a, b) in enumerate(itertools.zip_longest(slots(expected), slots(got))):
         reasons = _reasons(a, b, options)
         if reasons:
             differences.append(Difference(number, a, b, tuple(reasons)))
-    return max(len(want), len(have)) - 1, differences
+    return number, differences
 
 
 def _reasons(a: Slot | None, b: Slot | None, options: ReplayOptions) -> list[str]:
@@ -368,10 +382,17 @@ class ReplayResult:
         return f"{len(self.differences)} of {self.compared} exchanges differ on {where}"
 
 
-def replay(session: Session, port: serial.Serial, options: ReplayOptions | None = None) -> ReplayResult:
+def replay(
+    session: Session,
+    port: serial.Serial,
+    options: ReplayOptions | None = None,
+    on_write: Callable[[], None] | None = None,
+) -> ReplayResult:
     """Play `session` on `port` (opened with its line settings) and compare the replies."""
     options = options or ReplayOptions()
-    events = play(session, port, options)
+    events = play(session, port, options, on_write)
     family = session.header.device
-    compared, differences = compare(family, session.exchanges(), decode(family, events), options)
+    compared, differences = compare(
+        family, iter_decode(family, session.events), iter_decode(family, events), options
+    )
     return ReplayResult(family, compared, tuple(differences), tuple(events))

@@ -35,24 +35,24 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, fields
 from datetime import datetime
 from pathlib import Path
 from typing import IO, Any
 
 from emulator.device import HostLine, LineSettings
+from emulator.readers import ReadError, json_records
 from emulator.session_decode import Exchange, ExchangeDecoder
 
 FORMAT = "stage-emu"
 VERSION = 1
 FAMILIES = ("mp285", "ms2000")
 RX, TX, LINE, EXCHANGE, END = "rx", "tx", "line", "exchange", "end"
-#: a session file this large is not one the proxy wrote (it records a few kB per minute)
-MAX_BYTES = 256 << 20
+WHAT = "session file"
 
 
-class SessionError(Exception):
+class SessionError(ReadError):
     """A session file that cannot be read or written; the message is one line naming it."""
 
 
@@ -88,7 +88,8 @@ Event = Chunk | LineChange
 @dataclass(frozen=True)
 class Session:
     header: Header
-    events: tuple[Event, ...]
+    #: in time order; each iteration reads them again (`load_session`: from the file)
+    events: Iterable[Event]
     #: the file ends with an `end` record
     complete: bool = True
 
@@ -97,14 +98,18 @@ class Session:
 
 
 def decode(family: str, events: Iterable[Event]) -> list[Exchange]:
+    return list(iter_decode(family, events))
+
+
+def iter_decode(family: str, events: Iterable[Event]) -> Iterator[Exchange]:
+    """The exchanges of `events` as they close, in constant memory for any number of them."""
     decoder = ExchangeDecoder(family)
-    found: list[Exchange] = []
     for event in events:
         if isinstance(event, Chunk):
-            found += (
+            yield from (
                 decoder.rx(event.t, event.data) if event.direction == RX else decoder.tx(event.t, event.data)
             )
-    return found + decoder.finish()
+    yield from decoder.finish()
 
 
 def now_iso() -> str:
@@ -209,80 +214,67 @@ def save_session(session: Session, path: Path) -> int:
 # ---- reading ------------------------------------------------------------------------------------
 
 
-def load_session(path: Path) -> Session:
-    """Read and check a session file; SessionError (one line, `PATH:LINE: problem`) when it is not
-    one. A last line cut off by a killed proxy is left out."""
-    lines = list(_numbered_lines(path))
-    if not lines:
-        raise SessionError(f"{path}: empty, not a session file (`stage-emu proxy --record` writes one)")
-    header = _header(path, *lines[0])
-    events: list[Event] = []
+def load_session(path: Path, on_line: Callable[[], None] | None = None) -> Session:
+    """Check a session file; SessionError (one line, `PATH:LINE: problem`) when it is not one. The
+    file is read once to check it, a line at a time, and its events are read from it again on each
+    iteration of `Session.events`, so memory does not grow with it. A last line cut off by a killed
+    proxy is left out. `on_line` hears of each line read (progress)."""
+    records = _records(path, on_line)
+    header = next(records, None)
+    assert isinstance(header, Header)  # `_records` starts with it or raises
     complete = False
-    last_t = 0.0
-    for number, text, whole in lines[1:]:
-        try:
-            record = _object(text)
-        except ValueError as exc:
-            if not whole:  # the proxy died while writing it
-                break
-            raise SessionError(f"{path}:{number}: {exc}") from None
-        where = f"{path}:{number}"
-        t = _time(where, record)
-        kind = record.get("dir")
-        if kind in (RX, TX, LINE):
-            if t < last_t:
-                raise SessionError(f"{where}: t goes backwards ({t} after {last_t})")
-            last_t = t
-            events.append(_line_change(where, t, record) if kind == LINE else _chunk(where, t, kind, record))
-        elif kind == END:
-            complete = True
-        elif kind != EXCHANGE:
-            raise SessionError(f"{where}: unknown record dir {kind!r} (rx, tx, line, exchange or end)")
-    return Session(header, tuple(events), complete)
+    for record in records:
+        complete = record is END
+    return Session(header, SessionEvents(path), complete)
 
 
-def _numbered_lines(path: Path) -> Iterator[tuple[int, str, bool]]:
-    """(line number, text, ends with a newline) for every non-blank line."""
+@dataclass(frozen=True)
+class SessionEvents:
+    """The events of the session file at `path` (checked by `load_session`), read anew each time."""
+
+    path: Path
+
+    def __iter__(self) -> Iterator[Event]:
+        for record in _records(self.path):
+            if isinstance(record, (Chunk, LineChange)):
+                yield record
+
+
+def _records(path: Path, on_line: Callable[[], None] | None = None) -> Iterator[Header | Event | str]:
+    """The header, then each event, and END for an `end` record (exchanges are left out)."""
+    lines = json_records(path, WHAT, constants=False, on_line=on_line)
     try:
-        if path.is_dir():
-            raise SessionError(f"{path}: is a directory, not a session file")
-        if path.stat().st_size > MAX_BYTES:
-            raise SessionError(f"{path}: larger than {MAX_BYTES >> 20} MiB, not a session file")
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise SessionError(f"{path}: no such file") from None
-    except OSError as exc:
-        raise SessionError(f"{path}: cannot read it ({exc.strerror or exc})") from None
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError:
-        raise SessionError(f"{path}: not UTF-8 text, not a session file") from None
-    lines = text.split("\n")
-    for index, line in enumerate(lines):
-        if line.strip():
-            yield index + 1, line, index < len(lines) - 1
+        number, value = next(lines)
+        yield _header(f"{path}:{number}", value)
+        last_t = 0.0
+        for number, value in lines:
+            where = f"{path}:{number}"
+            record = _object(where, value)
+            t = _time(where, record)
+            kind = record.get("dir")
+            if kind in (RX, TX, LINE):
+                if t < last_t:
+                    raise SessionError(f"{where}: t goes backwards ({t} after {last_t})")
+                last_t = t
+                yield _line_change(where, t, record) if kind == LINE else _chunk(where, t, kind, record)
+            elif kind == END:
+                yield END
+            elif kind != EXCHANGE:
+                raise SessionError(f"{where}: unknown record dir {kind!r} (rx, tx, line, exchange or end)")
+    except ReadError as exc:
+        raise SessionError(str(exc)) from None
 
 
-def _object(text: str) -> dict[str, Any]:
-    try:
-        value = json.loads(text, parse_constant=_refuse_constant)
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"not JSON ({exc.msg}, column {exc.colno})") from None
+def _object(where: str, value: Any) -> dict[str, Any]:
     if not isinstance(value, dict):
-        raise ValueError("not a JSON object")
+        raise SessionError(f"{where}: not a JSON object")
     return value
 
 
-def _refuse_constant(name: str) -> None:
-    raise ValueError(f"{name} is not a number here")
-
-
-def _header(path: Path, number: int, text: str, _whole: bool) -> Header:
-    where = f"{path}:{number}"
-    try:
-        record = _object(text)
-    except ValueError as exc:
-        raise SessionError(f"{where}: {exc}; not a session file") from None
+def _header(where: str, value: Any) -> Header:
+    if not isinstance(value, dict):
+        raise SessionError(f"{where}: not a JSON object; not a session file")
+    record: dict[str, Any] = value
     if record.get("session") != FORMAT:
         raise SessionError(
             f'{where}: not a stage-emu session (no "session": "{FORMAT}" header; '

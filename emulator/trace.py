@@ -22,7 +22,8 @@ from pathlib import Path
 from typing import Any
 
 from emulator.device import GARBLED, LOST
-from emulator.trace_reader import LogFollower, TraceError
+from emulator.readers import Line, TooDeep, empty_error, json_value
+from emulator.trace_reader import WHAT, LogFollower, TraceError
 from emulator.trafficlog import EV, LOG_ONLY, RX, TX
 
 #: units the device acted on or answered: they open an exchange
@@ -56,9 +57,9 @@ class Record:
     fields: dict[str, Any] = field(default_factory=dict)
 
 
-def parse_record(text: str) -> Record:
-    """A log line as a record; ValueError when it is not one."""
-    return record_from(json.loads(text))
+def parse_record(text: str | bytes) -> Record:
+    """A log line as a record; ValueError when it is not one (`TooDeep` when it nests too deep)."""
+    return record_from(json_value(text.encode() if isinstance(text, str) else text))
 
 
 def record_from(entry: Any) -> Record:
@@ -91,7 +92,12 @@ def record_from(entry: Any) -> Record:
 
 
 def _float(value: object) -> float | None:
-    return float(value) if isinstance(value, (int, float)) and not isinstance(value, bool) else None
+    if not isinstance(value, (int, float)) or isinstance(value, bool):
+        return None
+    try:
+        return float(value)
+    except OverflowError:  # an integer of hundreds of digits
+        return None
 
 
 def readable(data: bytes) -> str:
@@ -313,8 +319,8 @@ def trace_lines(
     reply_wait_s: float = REPLY_WAIT_S,
 ) -> Iterator[str]:
     """The log's exchanges as lines; with `follow`, also those written later, until `stop` is set.
-    Raises TraceError (one line) for a file that cannot be read or is no traffic log, or filters
-    that match nothing in it."""
+    Raises ReadError (one line) for a file that cannot be read, is no traffic log or (without
+    `follow`) holds no record, or filters that match nothing in it."""
     stop = stop or threading.Event()
     notes = notes or TraceNotes()
     tracer = Tracer(options)
@@ -344,19 +350,23 @@ def trace_lines(
             if stop.wait(poll_s):
                 break
         notes.incomplete_tail = reader.has_partial_line
+    if not follow and not tracer.ports:  # nothing to show: not a log to trace (as plot and replay say)
+        raise empty_error(path, WHAT)
     yield from tracer.finish()
 
 
-def _traced(lines: list[str], tracer: Tracer, notes: TraceNotes, path: Path) -> Iterator[str]:
-    for text in lines:
-        if not text.strip():
+def _traced(lines: list[Line], tracer: Tracer, notes: TraceNotes, path: Path) -> Iterator[str]:
+    for number, data in lines:
+        if not data.strip():
             continue
         try:
-            record = parse_record(text)
+            record = parse_record(data)
+        except TooDeep as exc:  # hostile, not torn: never skipped
+            raise TraceError(f"{path}:{number}: not a {WHAT}: {exc}") from None
         except ValueError:
             if not tracer.ports:  # the first line decides whether this is a traffic log
                 raise TraceError(
-                    f"{path}: not a traffic log (its first line is no traffic record; "
+                    f"{path}:{number}: not a traffic log (its first line is no traffic record; "
                     "`stage-emu serve --log-traffic FILE` writes one)"
                 ) from None
             notes.malformed += 1

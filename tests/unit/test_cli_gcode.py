@@ -5,8 +5,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 from click.testing import CliRunner
 
+from emulator import cli_gcode
 from emulator.cli import main
 
 
@@ -48,7 +50,7 @@ def test_run_time_errors_name_the_line_too(tmp_path: Path) -> None:
 
 def test_missing_file_port_and_bad_scale(tmp_path: Path) -> None:
     missing = tmp_path / "none.nc"
-    assert run(str(missing), "--dry-run")[2] == f"stage-emu: {missing}: does not exist\n"
+    assert run(str(missing), "--dry-run")[2] == f"stage-emu: {missing}: no such file\n"
     program = tmp_path / "p.nc"
     program.write_text("G00 X1\n")
     assert run(str(program))[2] == "stage-emu: --port PATH is required (or --dry-run to only plan)\n"
@@ -58,3 +60,37 @@ def test_missing_file_port_and_bad_scale(tmp_path: Path) -> None:
     assert code == 2 and "'0' must be a number above 0" in err
     for _, _, err in (run(str(missing), "--dry-run"), run(str(program), "--port", "/nonexistent")):
         assert "Traceback" not in err
+
+
+def test_dry_run_prints_the_plan_as_it_is_made(tmp_path: Path) -> None:
+    """The program is read and planned a line at a time (before, a 2 M-move file passed 1.67 GB):
+    the steps before a bad line are out when it is found."""
+    program = tmp_path / "p.nc"
+    program.write_text("G21 G90\nG01 X1 F60\nX2\nG01 X3 Q7\nX4\n")
+    code, out, err = run(str(program), "--dry-run")
+    assert code == 1 and err == f"stage-emu: {program}:4: Q7: unsupported\n"
+    assert out.splitlines() == [
+        "line 2: move X=1.000000 at 1.000000 mm/s",
+        "line 3: move X=2.000000 at 1.000000 mm/s",
+    ]
+
+
+def test_a_last_line_without_its_newline_is_run_and_a_long_line_refused(tmp_path: Path) -> None:
+    program = tmp_path / "p.nc"
+    program.write_text("G01 X1 F60\nX2")
+    assert run(str(program), "--dry-run")[1].splitlines()[-1] == "line 2: move X=2.000000 at 1.000000 mm/s"
+    program.write_text("G01 X1 F60\n(" + "x" * 70_000 + ")\n")
+    code, _, err = run(str(program), "--dry-run")
+    assert (code, err) == (1, f"stage-emu: {program}:2: a line longer than 64 KiB, not a G-code program\n")
+
+
+def test_an_interrupted_dry_run_claims_no_halt(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A dry run sends nothing, so Ctrl-C there halts no program and switches no TTL output off."""
+
+    def interrupted(_steps: object) -> None:
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli_gcode, "_print_plan", interrupted)
+    program = tmp_path / "p.nc"
+    program.write_text("G01 X1 F60\n")
+    assert run(str(program), "--dry-run") == (1, "", "stage-emu: interrupted\n")

@@ -65,7 +65,7 @@ def test_missing_matplotlib_is_one_line(tmp_path: Path, monkeypatch: pytest.Monk
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["{tmp}/missing.jsonl", "-o", "{tmp}/p.png"], "{tmp}/missing.jsonl: does not exist"),
+        (["{tmp}/missing.jsonl", "-o", "{tmp}/p.png"], "{tmp}/missing.jsonl: no such file"),
         (["{tmp}/garbage.jsonl", "-o", "{tmp}/p.png"], "{tmp}/garbage.jsonl:1: not a traffic log"),
         (["{tmp}/quiet.jsonl", "-o", "{tmp}/p.png"], "{tmp}/quiet.jsonl: no move records"),
         (["{tmp}/t.jsonl", "-o", "{tmp}/p.png", "--device", "ghost"], "{tmp}/t.jsonl: no device 'ghost'"),

@@ -3,10 +3,21 @@ each exchange is a command line handed to the model after 10 ms of device time."
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import pytest
 
 from protocols.clients.errors import NoReply
-from protocols.clients.gcode import ExecutionError, GcodeError, GcodeExecutor, parse_program, run_program
+from protocols.clients.gcode import (
+    ExecutionError,
+    GcodeError,
+    GcodeExecutor,
+    Step,
+    iter_program,
+    moving_axes,
+    parse_program,
+    run_program,
+)
 from protocols.clients.ms2000 import MS2000
 from tests.unit.ms2000.conftest import Harness
 
@@ -148,3 +159,36 @@ def test_run_program_in_one_call() -> None:
     summary = run_program(stage, "G21 G91 G01 X0.1 Y0.1 F600\nM03\nM05", xyz_scale=2.0)
     assert (summary.moves, summary.outputs) == (1, 2)
     assert stage.harness.cmd("W X Y") == b":A 2000 2000\r\n"
+
+
+def test_a_plan_from_an_iterator_is_sent_as_it_is_made() -> None:
+    """With the axes known beforehand (`moving_axes`), the executor reads the plan once, a step at a
+    time: a program of millions of moves is never held whole (before, `run` took a list)."""
+    executor, stage = executor_on()
+    program = "G21 G90 G01 F600\n" + "".join(f"X{(i % 2) * 0.01:g}\n" for i in range(1, 7))
+    start = executor.start_position()
+    made: list[int] = []
+
+    def plan() -> Iterator[Step]:
+        for step in iter_program(program.splitlines(), start=start):
+            made.append(step.line)
+            yield step
+
+    heard: list[tuple[int, list[int]]] = []
+    axes = moving_axes(iter_program(program.splitlines(), start=start))
+    summary = executor.run(plan(), lambda step: heard.append((step.line, list(made))), axes=axes)
+    assert axes == {"X": 2} and summary.moves == 6
+    assert heard == [(line, list(range(2, line + 1))) for line in range(2, 8)], "one step ahead, never more"
+    assert stage.harness.cmd("W X") == b":A 0\r\n"
+
+
+def test_an_axis_the_stage_lacks_is_refused_from_the_axes_given_before_any_step_is_read() -> None:
+    executor, stage = executor_on("ms2000-xy")
+
+    class Unread:
+        def __iter__(self) -> Iterator[Step]:
+            raise AssertionError("no step may be read")
+
+    with pytest.raises(GcodeError, match=r"line 5: the stage has no Z axis \(it has X Y\)"):
+        executor.run(Unread(), axes={"X": 2, "Z": 5})
+    assert not [c for c in stage.sent if c.startswith(("M ", "S "))]

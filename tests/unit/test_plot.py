@@ -6,6 +6,7 @@ models under the real runner on a manual clock, with a traffic log."""
 from __future__ import annotations
 
 import json
+import tracemalloc
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -15,8 +16,10 @@ import pytest
 from emulator.clock import ManualClock
 from emulator.device import HostServices, LineSettings
 from emulator.line import FAST
-from emulator.plot import Leg, LogError, Session, Track, read_records, read_session
+from emulator.plot import POINTS, Leg, Session, Track, TrackBuilder
+from emulator.plot_scan import read_log, read_session
 from emulator.profile import load_profile
+from emulator.readers import ReadError
 from emulator.registry import family
 from emulator.runner import DeviceRunner
 from emulator.trafficlog import TrafficLog
@@ -102,8 +105,8 @@ EV = {"wall": 0.0, "device": "s", "dir": "ev"}
 @pytest.mark.parametrize(
     ("content", "message"),
     [
-        ("", "empty, no traffic log records"),
-        ("hello\nworld\n", ":1: not a traffic log (not a JSON record)"),
+        ("", "empty, not a traffic log"),
+        ("hello\nworld\n", ":1: not a traffic log: not JSON (Expecting value, column 1)"),
         ('{"a": 1}\n', ":1: not a traffic log record (no t, wall and device)"),
         (
             '{"t": 1, "device": "stage", "dir": "rx"}\n',
@@ -119,15 +122,15 @@ EV = {"wall": 0.0, "device": "s", "dir": "ev"}
 def test_a_log_it_cannot_plot_is_one_line_naming_the_file(tmp_path: Path, content: str, message: str) -> None:
     path = tmp_path / "bad.jsonl"
     path.write_text(content)
-    with pytest.raises(LogError, match="^" + str(path)) as caught:
+    with pytest.raises(ReadError, match="^" + str(path)) as caught:
         read_session(path)
     assert message in str(caught.value) and "\n" not in str(caught.value)
 
 
 def test_missing_file_and_directory(tmp_path: Path) -> None:
-    with pytest.raises(LogError, match="does not exist"):
+    with pytest.raises(ReadError, match="no such file"):
         read_session(tmp_path / "nope.jsonl")
-    with pytest.raises(LogError, match="is a directory"):
+    with pytest.raises(ReadError, match="is a directory"):
         read_session(tmp_path)
 
 
@@ -135,7 +138,7 @@ def test_a_last_line_cut_short_is_left_out(tmp_path: Path) -> None:
     """The daemon may stop in the middle of a write."""
     path = write_log(tmp_path / "t.jsonl", [move(1.0, "X", (1.0, 5.0))])
     path.write_text(path.read_text() + '{"t": 2.0, "dev')
-    assert len(read_records(path)) == 1
+    assert read_log(path).devices["stage"].path.end == 1.0
 
 
 def test_devices_are_chosen_by_name_or_by_being_the_only_one_that_moved(tmp_path: Path) -> None:
@@ -143,12 +146,12 @@ def test_devices_are_chosen_by_name_or_by_being_the_only_one_that_moved(tmp_path
     quiet = {**RX, "t": 1.0, "device": "quiet", "hex": ""}
     log = write_log(tmp_path / "t.jsonl", [move(1.0, "X", (1.0, 5.0)), quiet])
     assert read_session(log).device == "stage"
-    with pytest.raises(LogError, match=r"no move records of device 'quiet'"):
+    with pytest.raises(ReadError, match=r"no move records of device 'quiet'"):
         read_session(log, "quiet")
-    with pytest.raises(LogError, match=r"no device 'ghost' \(the log holds: quiet, stage\)"):
+    with pytest.raises(ReadError, match=r"no device 'ghost' \(the log holds: quiet, stage\)"):
         read_session(log, "ghost")
     write_log(log, [move(1.0, "X", (1.0, 5.0)), other])
-    with pytest.raises(LogError, match=r"several devices \(other, stage\): choose one with --device"):
+    with pytest.raises(ReadError, match=r"several devices \(other, stage\): choose one with --device"):
         read_session(log)
     assert read_session(log, "other").at("X", 2.0) == 7.0
 
@@ -226,3 +229,68 @@ def test_mp285_runs_and_halts_are_recorded(tmp_path: Path) -> None:
     assert [session.at(axis, started) for axis in "XYZ"] == [100.0, 40.0, 0.0]
     x_usteps = int.from_bytes(stopped[:4], "little", signed=True)
     assert 100 < session.at("X", session.end) == pytest.approx(x_usteps / 25, abs=0.05)
+
+
+# ---- long logs (issue "Hardening, round two", item 5) ---------------------------------------------
+
+
+def write_raster(path: Path, moves: int) -> Path:
+    """A serpentine of `moves` X moves between 0 and 1000 µm, Y a step per line, a cell arrival per
+    move; one move in the middle overshoots to 5000 µm."""
+    with path.open("w") as out:
+        x, t = 0.0, 1.0
+        for n in range(moves):
+            target = 1000.0 if x == 0.0 else 0.0
+            if n == moves // 2:
+                target = 5000.0
+            knots = {
+                "X": [[t, x], [t + 0.05, target]],
+                "Y": [[t, n // 2 * 10.0], [t + 0.05, (n + 1) // 2 * 10.0]],
+            }
+            out.write(json.dumps({"wall": 0.0, **event(t, "move"), "path": knots}) + "\n")
+            out.write(json.dumps({"wall": 0.0, **event(t + 0.05, "array_arrival", i=n, j=0)}) + "\n")
+            x, t = target, t + 0.1
+    return path
+
+
+def test_a_long_log_is_thinned_to_a_bounded_path_that_keeps_its_extent_and_end(tmp_path: Path) -> None:
+    """Before: every record stayed in memory as a dict and every knot was drawn (a 45 MB log took
+    866 MB and 38 s to plot)."""
+    moves = 8000  # four times the knots an axis keeps
+    log = write_raster(tmp_path / "t.jsonl", moves)
+    tracemalloc.start()
+    try:
+        session = read_session(log)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert peak < 8e6, f"{peak / 1e6:.1f} MB held while reading (before: 25 MB)"
+    for track in session.tracks.values():
+        assert sum(len(leg.knots) for leg in track.legs) <= 2 * POINTS
+    times = session.sample_times()
+    assert len(times) <= 3 * POINTS
+    xs = [session.at("X", t) for t in times]
+    assert (min(xs), max(xs)) == (0.0, 5000.0), "min/max per bucket keeps the overshoot"
+    assert session.at("Y", session.end) == moves // 2 * 10.0
+    assert session.at("X", session.end) == (1000.0 if moves % 2 else 0.0)
+    assert session.end == pytest.approx(1.0 + (moves - 1) * 0.1 + 0.05)
+    assert len(session.arrivals) <= POINTS and session.arrivals[-1].number == moves
+    assert session.arrivals[0].number == 1, "thinned cells keep their arrival numbers"
+
+
+def test_thinning_keeps_a_late_record_its_supersession_and_a_last_cruise() -> None:
+    """The latest legs stay as they came: a halt's record, written after later ones, still cuts the
+    move it halted; a track thinned to its last leg keeps that leg's cruise."""
+    builder = TrackBuilder(limit=40)
+    for n in range(100):
+        builder.add(Leg(((n, 0.0), (n + 0.5, 10.0))))
+    builder.add(Leg(((99.25, 3.0),)))  # written late: a halt at 99.25 of the move that began at 99
+    track = builder.track()
+    assert sum(len(leg.knots) for leg in track.legs) <= 2 * 40
+    assert (track.at(99.1), track.at(99.25), track.at(99.4)) == (pytest.approx(2.0), 3.0, 3.0)
+    assert all(0.0 <= track.at(t / 10) <= 10.0 for t in range(990)), "within its extent"
+    assert max(x for leg in track.legs for _, x in leg.knots) == 10.0
+    spinning = TrackBuilder(limit=4)
+    for n in range(6):
+        spinning.add(Leg(((n, 0.0), (n + 0.5, 1.0), (n + 0.75, 2.0)), cruise=4.0 if n == 5 else 0.0))
+    assert spinning.track().at(6.75) == pytest.approx(6.0), "the cruise after the last knot stays"

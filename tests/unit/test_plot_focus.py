@@ -19,9 +19,10 @@ from emulator.cli import main
 from emulator.clock import ManualClock
 from emulator.device import HostServices, LineSettings
 from emulator.line import FAST
-from emulator.plot import LogError
-from emulator.plot_focus import AfRun, StateChange, focus_device, read_focus
+from emulator.plot_focus import AfRun, StateChange
+from emulator.plot_scan import focus_device, read_focus, scan_records
 from emulator.profile import load_profile
+from emulator.readers import ReadError
 from emulator.registry import family
 from emulator.runner import DeviceRunner
 from emulator.trafficlog import AF_SAMPLE, CRISP_SAMPLE, TrafficLog
@@ -126,13 +127,14 @@ def test_af_runs_pair_start_and_end_and_samples_are_read(tmp_path: Path) -> None
 
 
 def test_the_focus_figure_is_chosen_for_a_device_with_focus_records() -> None:
-    moves = [{"device": "a", "ev": "move"}, {"device": "b", "ev": "move"}]
-    focusing = [*moves, {"device": "b", "ev": "crisp"}]
+    moves = [{**z_move(1.0, (1.0, 0.0)), "dir": "ev", "device": name} for name in "ab"]
+    start = {"t": 1.0, "dir": "ev", "device": "b", "ev": "af_start", "calibrating": False}
+    focusing = scan_records([*moves, {**crisp(1.0, "R"), "dir": "ev", "device": "b"}])
     assert focus_device(focusing, "b") == "b"
     assert focus_device(focusing, "a") is None
     assert focus_device(focusing, None) is None, "two devices: the path figure asks for --device"
-    assert focus_device([{"device": "b", "ev": "af_start"}, moves[1]], None) == "b"
-    assert focus_device(moves[:1], None) is None
+    assert focus_device(scan_records([start, moves[1]]), None) == "b"
+    assert focus_device(scan_records(moves[:1]), None) is None
 
 
 @pytest.mark.parametrize(
@@ -151,7 +153,7 @@ def test_the_focus_figure_is_chosen_for_a_device_with_focus_records() -> None:
 def test_a_log_without_a_focus_story_is_one_line(
     tmp_path: Path, records: list[dict[str, Any]], device: str | None, message: str
 ) -> None:
-    with pytest.raises(LogError) as caught:
+    with pytest.raises(ReadError) as caught:
         read_focus(write_log(tmp_path / "t.jsonl", records), device)
     assert str(caught.value).startswith(str(tmp_path)) and message in str(caught.value)
 

@@ -3,6 +3,8 @@ played on the in-process emulator, and the `replay`/`proxy` commands' exit codes
 
 from __future__ import annotations
 
+import json
+import tracemalloc
 from pathlib import Path
 
 import pytest
@@ -12,7 +14,18 @@ from click.testing import CliRunner, Result
 from emulator.cli import main
 from emulator.device import LineSettings
 from emulator.replay import ReplayOptions, compare, emulator_url, open_port, play, replay
-from emulator.session import RX, TX, Chunk, Event, Header, Session, SessionWriter, decode, load_session
+from emulator.session import (
+    RX,
+    TX,
+    Chunk,
+    Event,
+    Header,
+    Session,
+    SessionWriter,
+    decode,
+    iter_decode,
+    load_session,
+)
 
 LINE = LineSettings(baud=9600, data_bits=8, parity="none", stop_bits=1, rtscts=False, xonxoff=False)
 TOLERANCE = ReplayOptions(tolerance_s=0.005)
@@ -143,7 +156,7 @@ def test_replay_command_exit_codes(tmp_path: Path) -> None:
     ("args", "message"),
     [
         (["{tmp}/missing.jsonl"], "{tmp}/missing.jsonl: no such file"),
-        (["{tmp}/bad.jsonl"], "{tmp}/bad.jsonl:1: not JSON"),
+        (["{tmp}/bad.jsonl"], "{tmp}/bad.jsonl:1: not a session file: not JSON"),
         (
             ["{tmp}/good.jsonl", "--profile", "mp285"],
             "profile mp285 is for the mp285; the session was recorded on the ms2000",
@@ -179,7 +192,7 @@ def test_save_test_writes_a_conformance_case(tmp_path: Path, monkeypatch: pytest
         result.stdout.splitlines()[-1]
         == f"saved as a conformance case: {saved.relative_to(tmp_path)} (1 exchanges)"
     )
-    assert load_session(saved).events == load_session(session).events
+    assert tuple(load_session(saved).events) == tuple(load_session(session).events)
 
 
 def test_proxy_refuses_before_opening_anything(tmp_path: Path) -> None:
@@ -196,3 +209,30 @@ def test_proxy_refuses_before_opening_anything(tmp_path: Path) -> None:
         "stage-emu: profile mp285 is for the mp285, not the ms2000\n",
     )
     assert not (tmp_path / "link").exists()
+
+
+def test_a_long_session_is_compared_as_it_is_read(tmp_path: Path) -> None:
+    """The recording's exchanges come from the file a line at a time and meet the replay's one by
+    one (before: the file and both sides were held whole, as lists)."""
+    path = tmp_path / "long.jsonl"
+    writes = 8000
+    with path.open("w") as out:
+        header = {"session": "stage-emu", "version": 1, "device": "ms2000", "profile": "ms2000"}
+        out.write(
+            json.dumps({**header, "line": {"baud": 9600, "data_bits": 8, "parity": "none", "stop_bits": 1}})
+        )
+        for i in range(writes):
+            out.write(f'\n{{"t": {i * 0.01}, "dir": "rx", "hex": "2f 0d"}}')
+            out.write(f'\n{{"t": {i * 0.01 + 0.005}, "dir": "tx", "hex": "4e 0d 0a"}}')
+        out.write("\n")
+    session = load_session(path)
+    tracemalloc.start()
+    try:
+        compared, found = compare(
+            "ms2000", iter_decode("ms2000", session.events), iter_decode("ms2000", session.events), TOLERANCE
+        )
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert (compared, found) == (writes, [])
+    assert peak < 2e6, f"{peak / 1e6:.1f} MB held"

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import json
+import tracemalloc
 from pathlib import Path
 
 import pytest
@@ -169,7 +170,7 @@ def test_a_written_session_reads_back(tmp_path: Path) -> None:
     session = load_session(path)
     assert session.header == Header("ms2000", "ms2000", LINE, "/dev/ttyUSB0", records[0]["started"])
     assert session.complete
-    assert session.events == (
+    assert tuple(session.events) == (
         LineChange(0.1, HostLine(baud=9600, stop_bits=1, rtscts=False, xonxoff=False)),
         Chunk(0.2, RX, b"W X\r"),
         Chunk(0.21, TX, b":A 0\r\n"),
@@ -177,7 +178,7 @@ def test_a_written_session_reads_back(tmp_path: Path) -> None:
     )
     copy = tmp_path / "copy.jsonl"
     assert save_session(session, copy) == 2
-    assert load_session(copy).events == session.events
+    assert tuple(load_session(copy).events) == tuple(session.events)
 
 
 def test_an_existing_file_is_not_overwritten(tmp_path: Path) -> None:
@@ -194,7 +195,7 @@ def test_a_session_cut_short_keeps_what_it_holds(tmp_path: Path) -> None:
     lines = path.read_text().splitlines()
     path.write_text("\n".join(lines[:4]) + '\n{"t": 0.3, "dir": "t')  # killed mid-line, no end record
     session = load_session(path)
-    assert not session.complete and len(session.events) == 3
+    assert not session.complete and len(tuple(session.events)) == 3
 
 
 HEADER = json.dumps(
@@ -215,7 +216,10 @@ HEADER = json.dumps(
         (HEADER.replace(', "stop_bits": 1', "") + "\n", ":1: line needs baud"),
         (HEADER + '\n{"t": 1, "dir": "rx", "hex": "0"}\n', ":2: hex must be bytes as hex digits"),
         (HEADER + '\n{"t": 1, "dir": "rx", "hex": ""}\n', ":2: a rx record without bytes"),
-        (HEADER + '\n{"t": NaN, "dir": "rx", "hex": "00"}\n', ":2: NaN is not a number here"),
+        (
+            HEADER + '\n{"t": NaN, "dir": "rx", "hex": "00"}\n',
+            ":2: not a session file: not JSON (NaN is not a number here)",
+        ),
         (HEADER + '\n{"t": "1", "dir": "rx", "hex": "00"}\n', ":2: t must be seconds since the start"),
         (
             HEADER + '\n{"t": 2, "dir": "rx", "hex": "00"}\n{"t": 1, "dir": "tx", "hex": "00"}\n',
@@ -226,7 +230,7 @@ HEADER = json.dumps(
             HEADER + '\n{"t": 1, "dir": "line", "parity": "mark"}\n',
             ":2: parity 'mark' is not a valid setting",
         ),
-        (HEADER + "\nnot json\n" + '{"t": 1, "dir": "end"}\n', ":2: not JSON"),
+        (HEADER + "\nnot json\n" + '{"t": 1, "dir": "end"}\n', ":2: not a session file: not JSON"),
     ],
 )
 def test_a_malformed_session_is_one_line_naming_the_place(tmp_path: Path, text: str, problem: str) -> None:
@@ -252,3 +256,25 @@ def test_session_exchanges_decode_the_chunks() -> None:
     session = Session(Header("ms2000", "ms2000", LINE), (Chunk(0, RX, b"/\r"), Chunk(0.005, TX, b"N\r\n")))
     [exchange] = session.exchanges()
     assert isinstance(exchange, Exchange) and exchange.reply == b"N\r\n"
+
+
+def test_a_long_session_is_checked_and_read_again_in_constant_memory(tmp_path: Path) -> None:
+    """Before: the file was read whole and every event held at once (and anything under 256 MiB
+    was taken: gigabytes of objects); now memory does not grow with the file."""
+    path = tmp_path / "long.jsonl"
+    requests = 20_000
+    with path.open("w") as out:
+        out.write(HEADER + "\n")
+        for i in range(requests):
+            out.write(json.dumps({"t": i * 0.01, "dir": "rx", "hex": "2f 0d"}) + "\n")
+            out.write(json.dumps({"t": i * 0.01 + 0.005, "dir": "tx", "hex": "4e 0d 0a"}) + "\n")
+        out.write('{"t": 300, "dir": "end"}\n')
+    tracemalloc.start()
+    try:
+        session = load_session(path)
+        count = sum(1 for _ in session.events)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert session.complete and count == 2 * requests
+    assert peak < 2e6, f"{peak / 1e6:.1f} MB held"

@@ -14,6 +14,7 @@ import pytest
 from click.testing import CliRunner
 
 from emulator.cli import main
+from emulator.readers import ReadError
 from emulator.trace import (
     Record,
     TraceNotes,
@@ -25,7 +26,6 @@ from emulator.trace import (
     reply_gist,
     trace_lines,
 )
-from emulator.trace_reader import TraceError
 
 WALL = 1_700_000_000.25
 AT = clock_time(WALL)
@@ -197,7 +197,7 @@ def test_a_whole_log_is_traced_and_a_truncated_last_line_skipped(tmp_path: Path)
     ("make", "options", "message"),
     [
         (lambda p: p, TraceOptions(), "t.jsonl: no such file"),
-        (lambda p: write_log(p, ["hello", *LOG]), TraceOptions(), "t.jsonl: not a traffic log"),
+        (lambda p: write_log(p, ["hello", *LOG]), TraceOptions(), "t.jsonl:1: not a traffic log"),
         (
             lambda p: write_log(p, LOG),
             TraceOptions(device="stag"),
@@ -212,7 +212,7 @@ def test_bad_input_is_one_error(
 ) -> None:
     path = make(tmp_path / "t.jsonl")
     lines: list[str] = []
-    with pytest.raises(TraceError, match=message.replace("(", r"\(").replace(")", r"\)")):
+    with pytest.raises(ReadError, match=message.replace("(", r"\(").replace(")", r"\)")):
         lines.extend(trace_lines(path, options))
     assert lines == [], "nothing is printed before the error"
 
@@ -341,6 +341,67 @@ def test_cli_bad_input_is_one_line_and_exit_1(
     result = CliRunner().invoke(main, ["trace", str(path), *args])
     assert result.exit_code == 1
     assert result.stdout == ""
-    assert result.stderr.startswith(f"stage-emu: {path}: ") and message in result.stderr
+    assert result.stderr.startswith(f"stage-emu: {path}") and message in result.stderr
     assert len(result.stderr.splitlines()) == 1 and result.exception is not None
     assert isinstance(result.exception, SystemExit), "no traceback"
+
+
+# ---- bounded reading (issue "Hardening, round two", item 5) ------------------------------------------
+
+
+def test_cli_empty_log_is_one_line_and_exit_1_like_plot_and_replay(tmp_path: Path) -> None:
+    """An empty log is no log to trace: before, `trace` exited 0 silently while `plot` said so."""
+    path = tmp_path / "t.jsonl"
+    for content in ("", "\n  \n"):
+        path.write_text(content)
+        result = CliRunner().invoke(main, ["trace", str(path)])
+        assert (result.exit_code, result.stdout) == (1, "")
+        assert result.stderr == f"stage-emu: {path}: empty, not a traffic log\n"
+
+
+def test_follow_waits_on_an_empty_log_for_its_first_records(tmp_path: Path) -> None:
+    """A daemon just started has written nothing yet: following its log is no error."""
+    path = tmp_path / "t.jsonl"
+    path.write_text("")
+    follower = Follower(path)
+    append(path, WHERE + "\n" + WHERE_REPLY + "\n")
+    assert follower.wait_for(1) == EXPECTED[:1]
+    assert follower.finish() == EXPECTED[:1]
+
+
+def test_follow_keeps_a_partial_line_of_any_batch_until_its_rest_comes(tmp_path: Path) -> None:
+    """More lines than one read returns, the last of them cut: all arrive, in order, once."""
+    path = tmp_path / "t.jsonl"
+    many = [event(float(i), "halted") for i in range(5000)]
+    text = "".join(line + "\n" for line in many)
+    path.write_text(text[:-30])
+    follower = Follower(path)
+    follower.wait_for(4999)
+    append(path, text[-30:])
+    lines = follower.wait_for(5000)
+    assert lines == [f"{float(i):11.6f}  {AT}  stage  * halted" for i in range(5000)]
+    follower.finish()
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        (b"[" * 100_000 + b"\n", "t.jsonl:1: not a traffic log: nested deeper than 64 levels"),
+        (b"x" * (2 << 20), "t.jsonl:1: a line longer than 1 MiB, not a traffic log"),
+    ],
+    ids=["deep-nesting", "huge-line"],
+)
+def test_cli_hostile_lines_are_one_line_naming_the_line(tmp_path: Path, content: bytes, message: str) -> None:
+    """Before: a RecursionError traceback for the nesting; a line of any length read whole."""
+    path = tmp_path / "t.jsonl"
+    path.write_bytes(content)
+    result = CliRunner().invoke(main, ["trace", str(path)])
+    assert result.exit_code == 1 and isinstance(result.exception, SystemExit)
+    assert result.stderr == f"stage-emu: {tmp_path}/{message}\n"
+
+
+def test_deep_nesting_after_the_first_record_is_an_error_not_a_skipped_line(tmp_path: Path) -> None:
+    path = tmp_path / "t.jsonl"
+    path.write_bytes(f"{WHERE}\n{WHERE_REPLY}\n".encode() + b"[" * 70 + b"]" * 70 + b"\n")
+    with pytest.raises(ReadError, match=r"t\.jsonl:3: not a traffic log: nested deeper than 64 levels"):
+        list(trace_lines(path, TraceOptions()))

@@ -11,12 +11,24 @@ high-level commands through the MS2000 client, so it needs no Tracer firmware.
         executor.run(steps)
 
 `parse_program` raises `GcodeError` (with the line number) for a program it cannot run;
-`GcodeExecutor.run` raises `ExecutionError` when the controller refuses or falls silent.
+`GcodeExecutor.run` raises `ExecutionError` when the controller refuses or falls silent. For a
+program of any length, `iter_program(lines)` plans a step at a time as the lines come, and
+`executor.run(iter_program(...), axes=moving_axes(iter_program(...)))` sends it in one pass.
 """
 
 from protocols.clients.gcode.executor import ExecutionError, GcodeExecutor, RunSummary, run_program
-from protocols.clients.gcode.parser import GcodeError, parse_program, read_program
-from protocols.clients.gcode.plan import SAGITTA_MM, Dwell, Move, Output, Step, arc_chords, chord_count
+from protocols.clients.gcode.parser import GcodeError, iter_blocks, iter_program, parse_program, read_program
+from protocols.clients.gcode.plan import (
+    SAGITTA_MM,
+    Dwell,
+    Move,
+    Output,
+    Step,
+    arc_chords,
+    chord_count,
+    iter_arc_chords,
+    moving_axes,
+)
 
 __all__ = [
     "SAGITTA_MM",
@@ -30,6 +42,10 @@ __all__ = [
     "Step",
     "arc_chords",
     "chord_count",
+    "iter_arc_chords",
+    "iter_blocks",
+    "iter_program",
+    "moving_axes",
     "parse_program",
     "read_program",
     "run_program",

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import contextlib
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from functools import partial
 from typing import TypeVar
@@ -23,7 +23,7 @@ import serial
 
 from protocols.clients.errors import NoReply
 from protocols.clients.gcode.parser import GcodeError, parse_program
-from protocols.clients.gcode.plan import AXES, Dwell, Move, Output, Point, Step
+from protocols.clients.gcode.plan import AXES, Dwell, Move, Output, Point, Step, moving_axes
 from protocols.clients.ms2000 import MS2000, MS2000Error
 
 #: above any axis's maximum speed (mm/s): the controller clamps it to the maximum (MS-54)
@@ -91,9 +91,20 @@ class GcodeExecutor:
 
     # ---- running ------------------------------------------------------------------------------
 
-    def run(self, steps: Sequence[Step], on_step: Callable[[Step], None] | None = None) -> RunSummary:
-        """Run the plan to its end; `on_step` hears of each step before it is sent."""
-        moving = self._moving_axes(steps)
+    def run(
+        self,
+        steps: Iterable[Step],
+        on_step: Callable[[Step], None] | None = None,
+        *,
+        axes: Mapping[str, int] | None = None,
+    ) -> RunSummary:
+        """Run the plan to its end; `on_step` hears of each step before it is sent. `axes` are the
+        axes the plan moves, with the line that first moves each (`moving_axes`): given them, the
+        plan is read once, as it is sent, so a plan of any length can come from an iterator."""
+        if axes is None:
+            steps = list(steps)
+            axes = moving_axes(steps)
+        moving = self._check_axes(axes)
         started = self._clock()
         summary = RunSummary()
         self._prepare(moving)
@@ -109,14 +120,9 @@ class GcodeExecutor:
         summary.seconds = self._clock() - started
         return summary
 
-    def _moving_axes(self, steps: Sequence[Step]) -> list[str]:
-        """The axes the plan moves; each must exist on the stage."""
+    def _check_axes(self, first_use: Mapping[str, int]) -> list[str]:
+        """The axes the plan moves (in X Y Z order); each must exist on the stage."""
         present = self._ask(None, self.stage.axes)
-        first_use: dict[str, int] = {}
-        for step in steps:
-            if isinstance(step, Move):
-                for axis in step.deltas():
-                    first_use.setdefault(axis, step.line)
         for axis, line in first_use.items():
             if axis not in present:
                 raise GcodeError(line, f"the stage has no {axis} axis (it has {' '.join(present)})")

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 
 from protocols.clients.gcode.plan import (
@@ -40,7 +41,7 @@ from protocols.clients.gcode.plan import (
     Plane,
     Point,
     Step,
-    arc_chords,
+    iter_arc_chords,
 )
 
 INCH_MM = 25.4
@@ -141,12 +142,13 @@ def _add_g(block: Block, value: float, text: str) -> None:
 
 @dataclass
 class Interpreter:
-    """Runs blocks against the modal state, appending steps; positions are stage mm."""
+    """Runs blocks against the modal state, yielding their steps; positions are stage mm. A block's
+    steps are made as they are taken (an arc's chords one at a time), so its state moves with them:
+    take them all before the next block."""
 
     position: Point = (0.0, 0.0, 0.0)
     xyz_scale: float = 1.0
     speed_scale: float = 1.0
-    steps: list[Step] = field(default_factory=list)
     motion: int | None = None
     plane: Plane = PLANES[17]
     unit_mm: float = 1.0
@@ -154,7 +156,7 @@ class Interpreter:
     polar: bool = False
     feed_mm_s: float | None = None
 
-    def run(self, block: Block) -> None:
+    def run(self, block: Block) -> Iterator[Step]:
         g = block.g
         if "units" in g:
             self.unit_mm = INCH_MM if g["units"] == 20 else 1.0
@@ -172,27 +174,27 @@ class Interpreter:
         if "motion" in g:
             self.motion = g["motion"]
         if block.m == 3:
-            self.steps.append(Output(True, block.line))
+            yield Output(True, block.line)
         if "dwell" in g:
-            self._dwell(block)
+            yield self._dwell(block)
         else:
             if "P" in words:
                 raise GcodeError(block.line, "P belongs to G04 (dwell)")
-            self._motion(block)
+            yield from self._motion(block)
         if block.m == 5:
-            self.steps.append(Output(False, block.line))
+            yield Output(False, block.line)
 
     # ---- dwell and motion ---------------------------------------------------------------------
 
-    def _dwell(self, block: Block) -> None:
+    def _dwell(self, block: Block) -> Dwell:
         others = sorted(set(block.words) - {"P", "F"})
         if others:
             raise GcodeError(block.line, f"G04 takes only P (ms), not {', '.join(others)}")
         if "P" not in block.words or block.words["P"] < 0:
             raise GcodeError(block.line, "G04 needs P with the dwell time in ms (0 or more)")
-        self.steps.append(Dwell(block.words["P"] / 1000, block.line))
+        return Dwell(block.words["P"] / 1000, block.line)
 
-    def _motion(self, block: Block) -> None:
+    def _motion(self, block: Block) -> Iterator[Step]:
         words = block.words
         axis_words = [a for a in AXES if a in words]
         arc_words = [w for w in "IJKR" if w in words]
@@ -205,11 +207,11 @@ class Interpreter:
             raise GcodeError(block.line, f"{named} belong to G02/G03 arcs, not G0{self.motion}")
         end = self._target(block)
         if self.motion == 0:
-            self._segment(end, None, block.line)
+            yield from self._segment(end, None, block.line)
         elif self.motion == 1:
-            self._segment(end, self._feed(block), block.line)
+            yield from self._segment(end, self._feed(block), block.line)
         else:
-            self._arc(block, end)
+            yield from self._arc(block, end)
         self.position = end
 
     def _feed(self, block: Block) -> float:
@@ -217,10 +219,10 @@ class Interpreter:
             raise GcodeError(block.line, f"no feed rate: give F before or with G0{self.motion}")
         return self.feed_mm_s
 
-    def _segment(self, end: Point, feed: float | None, line: int) -> None:
+    def _segment(self, end: Point, feed: float | None, line: int) -> Iterator[Move]:
         move = Move(self.position, end, feed, line)
         if move.deltas():
-            self.steps.append(move)
+            yield move
 
     # ---- coordinates --------------------------------------------------------------------------
 
@@ -258,7 +260,7 @@ class Interpreter:
 
     # ---- arcs ---------------------------------------------------------------------------------
 
-    def _arc(self, block: Block, end: Point) -> None:
+    def _arc(self, block: Block, end: Point) -> Iterator[Move]:
         feed = self._feed(block)
         words = block.words
         plane = self.plane
@@ -275,8 +277,8 @@ class Interpreter:
             centre = self._centre_from_offsets(block, end)
         else:
             raise GcodeError(block.line, f"G0{self.motion} needs I/J/K (centre) or R (radius)")
-        for point in arc_chords(self.position, end, centre, plane, clockwise=self.motion == 2):
-            self._segment(point, feed, block.line)
+        for point in iter_arc_chords(self.position, end, centre, plane, clockwise=self.motion == 2):
+            yield from self._segment(point, feed, block.line)
             self.position = point
 
     def _in_plane(self, point: Point) -> tuple[float, float]:
@@ -335,23 +337,33 @@ def parse_program(
 ) -> list[Step]:
     """The plan of a whole program starting at `start` (stage mm); raises `GcodeError` naming the
     first line it cannot run. Lines after M02/M30 are not read."""
+    return list(iter_program(text.splitlines(), start=start, xyz_scale=xyz_scale, speed_scale=speed_scale))
+
+
+def iter_program(
+    lines: Iterable[str], *, start: Point = (0.0, 0.0, 0.0), xyz_scale: float = 1.0, speed_scale: float = 1.0
+) -> Iterator[Step]:
+    """`parse_program` of the program's lines (numbered from 1), a step at a time as the lines are
+    read: a program of any length is planned in constant memory."""
     for name, value in (("xyz_scale", xyz_scale), ("speed_scale", speed_scale)):
         if not math.isfinite(value) or value <= 0:
             raise ValueError(f"{name} must be a finite number above 0, got {value!r}")
     interpreter = Interpreter(start, xyz_scale, speed_scale)
-    for block in read_program(text):
-        interpreter.run(block)
-    return interpreter.steps
+    for block in iter_blocks(lines):
+        yield from interpreter.run(block)
 
 
 def read_program(text: str) -> list[Block]:
     """Every line's words up to M02/M30, checked for what can be checked without running them (a
     program can be refused before a port is opened)."""
-    blocks: list[Block] = []
-    for number, line in enumerate(text.splitlines(), start=1):
+    return list(iter_blocks(text.splitlines()))
+
+
+def iter_blocks(lines: Iterable[str]) -> Iterator[Block]:
+    """`read_program` of the program's lines (numbered from 1), a block at a time."""
+    for number, line in enumerate(lines, start=1):
         block = read_block(number, line)
         if block is not None:
-            blocks.append(block)
+            yield block
             if block.m in END_CODES:
-                break
-    return blocks
+                return

@@ -8,6 +8,7 @@ already broken into chords whose sagitta is at most `SAGITTA_MM` (0.5 µm, MS-TR
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 
 AXES = ("X", "Y", "Z")
@@ -46,7 +47,8 @@ class Move:
         return {a: self.feed_mm_s * abs(d) / length for a, d in self.deltas().items()}
 
     def __str__(self) -> str:
-        target = " ".join(f"{a}={e:.6f}" for a, e in zip(AXES, self.end, strict=True) if a in self.deltas())
+        moving = self.deltas()
+        target = " ".join(f"{a}={e:.6f}" for a, e in zip(AXES, self.end, strict=True) if a in moving)
         how = "rapid" if self.feed_mm_s is None else f"at {self.feed_mm_s:.6f} mm/s"
         return f"line {self.line}: move {target} {how}"
 
@@ -74,6 +76,16 @@ class Output:
 
 
 Step = Move | Dwell | Output
+
+
+def moving_axes(steps: Iterable[Step]) -> dict[str, int]:
+    """The axes a plan moves, each with the program line that first moves it."""
+    first_use: dict[str, int] = {}
+    for step in steps:
+        if isinstance(step, Move):
+            for axis in step.deltas():
+                first_use.setdefault(axis, step.line)
+    return first_use
 
 
 def chord_count(radius_mm: float, sweep_rad: float, sagitta_mm: float = SAGITTA_MM) -> int:
@@ -112,6 +124,13 @@ def arc_chords(
     second coordinates), the last being `end` itself. Start equal to end (in the plane) is a full
     turn. A radius that differs between the ends changes linearly along the way, and the normal
     axis moves linearly with the angle (a helix)."""
+    return list(iter_arc_chords(start, end, centre, plane, clockwise))
+
+
+def iter_arc_chords(
+    start: Point, end: Point, centre: tuple[float, float], plane: Plane, clockwise: bool
+) -> Iterator[Point]:
+    """`arc_chords` a point at a time: a huge arc's hundred thousand chords are never held at once."""
     cu, cv = centre
     u0, v0 = start[plane.first] - cu, start[plane.second] - cv
     u1, v1 = end[plane.first] - cu, end[plane.second] - cv
@@ -123,7 +142,6 @@ def arc_chords(
         ccw = (math.atan2(v1, u1) - a0) % (2 * math.pi)
         sweep = ccw - 2 * math.pi if clockwise else ccw
     count = chord_count(max(r0, r1), sweep)
-    points: list[Point] = []
     for i in range(1, count):
         share = i / count
         angle = a0 + sweep * share
@@ -132,6 +150,5 @@ def arc_chords(
         point[plane.first] = cu + radius * math.cos(angle)
         point[plane.second] = cv + radius * math.sin(angle)
         point[plane.normal] = start[plane.normal] + (end[plane.normal] - start[plane.normal]) * share
-        points.append((point[0], point[1], point[2]))
-    points.append(end)
-    return points
+        yield (point[0], point[1], point[2])
+    yield end
