@@ -4,9 +4,12 @@ No thread and no event loop: device time is a `ScaledClock` (real time by defaul
 from the host first brings the runner up to the current device time (`DeviceRunner.pump`). That is
 exact, not an approximation: a model stamps each output with the instant it was due and the line
 paces it from there, so catching up late yields the same bytes at the same device instants as a
-timer would have. Only waiting needs the clock: a read that has not got its bytes sleeps until the
-next instant something is due (the model's next event, the next paced byte in either direction) or
-its timeout, whichever is first, then catches up again. That sleep is the only wait.
+timer would have. Only waiting needs the clock: a read that has not got its bytes, or a write the
+wire has no room for, sleeps until the next instant something is due (the model's next event, the
+next paced byte in either direction) or its timeout, whichever is first, then catches up again.
+That sleep is the only wait. A write sleeps only while host bytes or device output are still
+crossing the wire (so something is due): on an unpaced line the device takes host bytes as they
+are handed over, and the write hands over its next chunk at once.
 
 Hosts may read in one thread and write in another (pyserial's `ReaderThread`, miniterm): every call
 holds one condition's lock, and a sleeping reader is woken whenever another thread writes, changes
@@ -23,7 +26,8 @@ from serial.serialutil import SerialException, SerialTimeoutException
 
 from emulator import registry
 from emulator.clock import ScaledClock
-from emulator.device import MAIN, HostLine, HostServices
+from emulator.device import MAIN, HostLine, HostServices, Store, StoreReport
+from emulator.nvstore import ReportingStore, StateInUse
 from emulator.profile import ProfileError, load_profile
 from emulator.runner import DeviceRunner
 from emulator.transports.inprocess import InProcessTransport
@@ -65,12 +69,23 @@ class HostedDevice:
             raise ValueError(f"{url!r}: {exc}") from None
         family = registry.family(profile.family)
         assert family is not None  # load_profile checked it
-        services = HostServices(state_dir=options.state_dir)
+        #: the stores the models opened: closing the port gives up their claims on the state files
+        self._stores: list[ReportingStore] = []
+
+        def open_store(device_id: str, report: StoreReport) -> Store:
+            store = ReportingStore(options.state_dir, device_id, report)
+            self._stores.append(store)
+            return store
+
+        services = HostServices(stores=open_store)
         self.clock = ScaledClock(options.scale)
         self.transport = InProcessTransport(url)
-        self.runner = DeviceRunner(
-            lambda now: family.factory(profile.name, profile, now, services), self.clock
-        )
+        try:
+            self.runner = DeviceRunner(
+                lambda now: family.factory(profile.name, profile, now, services), self.clock
+            )
+        except StateInUse as exc:
+            raise ValueError(f"{url!r}: {exc}; give state= another directory, or none") from None
         self.runner.attach_transport(MAIN, self.transport, options.timing)
         self._main = self.runner.channels[MAIN]
         self._changed = threading.Condition()
@@ -113,7 +128,13 @@ class HostedDevice:
                     self.transport.send(chunk)
                     sent += len(chunk)
                     self._changed.notify_all()  # a reader may now expect a reply sooner
-                if sent == len(data) or non_blocking or self._write_cancelled:
+                if sent == len(data) or self._write_cancelled:
+                    break
+                if chunk and not self._main.from_host:
+                    # The device took the chunk at once (an unpaced line): the wire has room again
+                    # now, and nothing is due that would end a wait for it.
+                    continue
+                if non_blocking:
                     break
                 if deadline.passed():
                     raise SerialTimeoutException("Write timeout")
@@ -176,6 +197,8 @@ class HostedDevice:
                 return
             self._closed = True
             self.runner.close()
+            for store in self._stores:
+                store.close()
             self._changed.notify_all()
 
     # ---- time -----------------------------------------------------------------------------------
