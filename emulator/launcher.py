@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
 
-from emulator.control import ControlClient
+from emulator.control_client import ControlClient
 
 STARTUP_TIMEOUT = 20.0
 
@@ -103,24 +103,16 @@ def start_daemon(
     env: dict[str, str] | None = None,
     preexec_fn: Callable[[], None] | None = None,
 ) -> RunningDaemon:
-    """Run `python -m ENTRY serve ARGS` with its links, socket and state under `workdir`; returns
-    once `expect_ports` readiness lines were printed. `env` replaces the environment; `preexec_fn`
-    runs in the child before exec (e.g. to lower a resource limit)."""
+    """Run `python -m ENTRY serve ARGS` with its links, socket and state under `workdir` (the
+    state only unless ARGS has `--no-state`); returns once `expect_ports` readiness lines were
+    printed. `env` replaces the environment; `preexec_fn` runs in the child before exec (e.g. to
+    lower a resource limit)."""
     workdir.mkdir(parents=True, exist_ok=True)
     control = workdir / "control.sock"
-    command = [
-        sys.executable,
-        "-m",
-        entry,
-        "serve",
-        *args,
-        "--control",
-        str(control),
-        "--link-dir",
-        str(workdir / "links"),
-        "--state-dir",
-        str(workdir / "state"),
-    ]
+    command = [sys.executable, "-m", entry, "serve", *args, "--control", str(control)]
+    command += ["--link-dir", str(workdir / "links")]
+    if "--no-state" not in args:
+        command += ["--state-dir", str(workdir / "state")]
     proc = subprocess.Popen(
         command, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, preexec_fn=preexec_fn
     )

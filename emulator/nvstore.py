@@ -12,6 +12,12 @@ disk, but the in-memory copy still behaves like flash for the life of the model.
 Failures to read, write or remove the file are logged and raised as `StorageError`; the caller
 decides what the device does about them (the MS2000 acks `SS Z` anyway and raises a fault flag).
 
+One process at a time owns a store file: a store claims it when it is opened (`claim`, an exclusive
+`flock` on `.<name>.lock` beside it, with the owner's pid inside) and a store of another process is
+refused with `StateInUse`, so two daemons (or a daemon and a `stageemu://...?state=DIR` port) never
+overwrite each other's saves unseen. Stores of one process share the claim (a model and the one a
+reset replaces it with); the kernel drops it with the process, so a killed owner blocks nobody.
+
 A device model gets its store from the host (`HostServices.open_store`, emulator/device.py) and
 never sees a file. Two kinds hand the outcome of each save to a `report` callback instead of raising:
 `ReportingStore` writes at once, on the caller's thread (unit tests, in-process hosting);
@@ -30,11 +36,14 @@ import re
 import stat
 import threading
 import time
+import weakref
 from collections.abc import Callable
+from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 from typing import Any
 
+from emulator import runtime
 from emulator.runtime import pid_alive, write_private_atomic
 
 log = logging.getLogger("stage_emu.nvstore")
@@ -60,22 +69,141 @@ class StorageError(Exception):
         self.reason = reason
 
 
+class StateInUse(ValueError):
+    """Another process owns a store file. The message is one line naming the file and the owner's
+    pid; hosts add how to go on (emulator/daemon.py: another --state-dir, or --no-state). A
+    ValueError, as every other reason a `stageemu://` URL cannot be opened."""
+
+    def __init__(self, path: Path, pid: int | None) -> None:
+        owner = "another process" if pid is None else f"process {pid}"
+        super().__init__(f"non-volatile memory {path} is in use by {owner}")
+        self.path = path
+        self.pid = pid
+
+
+def lock_path(path: Path) -> Path:
+    """The lock file of store file `path`: beside it, so every path to the file finds the same one."""
+    return path.with_name(f".{path.name}.lock")
+
+
+@dataclass
+class _Held:
+    fd: int
+    users: int
+
+
+#: this process's claims, by the lock file's (st_dev, st_ino): one flock per file, shared by its stores
+_held: dict[tuple[int, int], _Held] = {}
+_held_guard = threading.Lock()
+
+
+class Claim:
+    """One store's share of its process's claim on a file (see `claim`); `release` gives it up."""
+
+    def __init__(self, key: tuple[int, int] | None) -> None:
+        self._key = key
+
+    @property
+    def held(self) -> bool:
+        return self._key is not None
+
+    def release(self) -> None:
+        """Give up this share; the lock goes with the last share of the process. Idempotent."""
+        key, self._key = self._key, None
+        if key is None:
+            return
+        with _held_guard:
+            held = _held[key]
+            held.users -= 1
+            if held.users == 0:
+                del _held[key]
+                os.close(held.fd)  # releases the flock
+
+
+def claim(path: Path) -> Claim:
+    """Claim store file `path` for this process; StateInUse when another process holds it.
+
+    A claim that cannot be made (a folder that cannot be created, a file system without locks) is
+    logged and the store goes on unclaimed: its saves will report what is wrong with the folder.
+    Off POSIX nothing is locked (the in-process URL runs on Windows, which has no `flock`)."""
+    if not runtime.POSIX:
+        return Claim(None)
+    import fcntl  # POSIX only (see above)
+
+    lock = lock_path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600)
+    except FileExistsError:  # mkdir's word for a file where the folder should be
+        return _unclaimed(path, f"{path.parent} is not a directory")
+    except OSError as exc:
+        return _unclaimed(path, exc.strerror or str(exc))
+    with _held_guard:
+        try:
+            info = os.fstat(fd)
+            key = (info.st_dev, info.st_ino)
+            if key in _held:  # another store of this process (a symlinked folder finds it too)
+                _held[key].users += 1
+                os.close(fd)
+                return Claim(key)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                owner = _read_pid(fd)
+                os.close(fd)
+                raise StateInUse(path, owner) from None
+            # pid first, then cut: a reader sees the old pid or ours on the first line, never nothing
+            mine = f"{os.getpid()}\n".encode()
+            os.pwrite(fd, mine, 0)
+            os.ftruncate(fd, len(mine))
+        except OSError as exc:  # a file system without locks
+            os.close(fd)
+            return _unclaimed(path, exc.strerror or str(exc))
+        _held[key] = _Held(fd, 1)
+        return Claim(key)
+
+
+def _unclaimed(path: Path, reason: str) -> Claim:
+    log.warning("cannot lock %s (%s): another process could use it unseen", path, reason)
+    return Claim(None)
+
+
+def _read_pid(fd: int) -> int | None:
+    try:
+        first = os.pread(fd, 32, 0).split(b"\n", 1)[0]
+    except OSError:
+        return None
+    return int(first) if first.isdigit() else None
+
+
 class NvStore:
     """The flash of one device, keyed by `device_id` (a profile value).
 
     The file is read by the first `load()`; later loads return the in-memory copy, which `save()`
-    replaces even when the disk write fails (the device's flash works for the life of the model)."""
+    replaces even when the disk write fails (the device's flash works for the life of the model).
+    Opening a store claims its file (StateInUse: another process owns it); `close()`, or the store's
+    collection, gives the claim up."""
 
     def __init__(self, state_dir: Path | None, device_id: str) -> None:
         self.device_id = device_id
         self.path = None if state_dir is None else Path(state_dir) / f"{_SAFE.sub('_', device_id)}.json"
         self._data: dict[str, Any] | None = None
+        self._release: Callable[[], object] | None = None
         if self.path is not None:
+            # claimed before anything is read or removed: a refused store touches nothing
+            held = claim(self.path)
+            if held.held:
+                self._release = weakref.finalize(self, held.release)
             self._remove_orphaned_temps(self.path)
 
     @property
     def persistent(self) -> bool:
         return self.path is not None
+
+    def close(self) -> None:
+        """Give up the claim on the file (a later save still writes, unclaimed)."""
+        if self._release is not None:
+            self._release()
 
     def load(self) -> dict[str, Any]:
         """A copy of the stored object (empty when nothing was ever saved). Raises StorageError
@@ -281,7 +409,8 @@ class FlashWriter:
     Coalesced: a store has at most one image waiting; a newer save replaces it, so a burst of saves
     costs one write of the latest image. `deliver(callable)` must run the callable on the host's
     thread (the loop's `call_soon_threadsafe`): outcomes go back through it. `close()` writes every
-    waiting image before it returns, so a clean shutdown (SIGTERM) loses no save."""
+    waiting image before it returns, so a clean shutdown (SIGTERM) loses no save, then gives up
+    the stores' claims on their files."""
 
     def __init__(self, state_dir: Path, deliver: Callable[[Callable[[], None]], object]) -> None:
         self.state_dir = state_dir
@@ -292,9 +421,13 @@ class FlashWriter:
         self._busy: DeferredStore | None = None
         self._thread: threading.Thread | None = None
         self._closed = False
+        #: the stores opened here that are still in use, whose claims `close` gives up
+        self._stores: weakref.WeakSet[DeferredStore] = weakref.WeakSet()
 
     def open(self, device_id: str, report: Report) -> DeferredStore:
-        return DeferredStore(self, self.state_dir, device_id, report)
+        store = DeferredStore(self, self.state_dir, device_id, report)
+        self._stores.add(store)
+        return store
 
     def submit(self, store: DeferredStore, number: int, image: dict[str, Any]) -> None:
         with self._cond:
@@ -320,13 +453,16 @@ class FlashWriter:
         return dropped
 
     def close(self) -> None:
-        """Write what is waiting, then stop the worker. Blocks; later saves are written at once."""
+        """Write what is waiting, stop the worker, give up the claims. Blocks; later saves are
+        written at once (unclaimed: the process is on its way out)."""
         with self._cond:
             self._closed = True
             self._cond.notify_all()
             thread = self._thread
         if thread is not None:
             thread.join()
+        for store in list(self._stores):
+            store.close()
 
     def _run(self) -> None:
         while True:

@@ -26,6 +26,7 @@ from typing import Any
 
 import serial
 
+from emulator.control_client import ControlClient
 from emulator.launcher import RunningDaemon, start_daemon, write_rig
 from scripts.soak.probes import Latencies, cpu_percent, fd_count, round_trips, rss_mb, settle
 
@@ -323,13 +324,24 @@ def slow_subscriber(workdir: Path, seconds: float = 60.0, devices: int = 3) -> O
 
 
 def stop_signals(workdir: Path) -> Outcome:
-    """Every terminating signal gives a clean exit 0 with links and socket removed."""
+    """Every terminating signal, sent while a control client is subscribed, gives a clean exit 0:
+    links and socket removed, no traceback logged."""
     out = Outcome("terminating signals")
     for sig in (signal.SIGHUP, signal.SIGINT, signal.SIGTERM, signal.SIGQUIT):
         daemon = _start(workdir / sig.name, [("ms", "ms2000")], "fast")
         link = Path(daemon.port("ms"))
-        code = daemon.stop(sig)
+        # not `daemon.control()`: `stop` closes those first, and this one must still be there
+        subscriber: ControlClient | None = None
+        try:
+            subscriber = ControlClient(daemon.control_path)
+            subscriber.subscribe("ms")
+        finally:
+            code = daemon.stop(sig)
+            if subscriber is not None:
+                subscriber.close()
+        traceback = "Traceback" in daemon.stderr()
         clean = code == 0 and not os.path.lexists(link) and not daemon.control_path.exists()
-        out.figures[sig.name] = "clean" if clean else f"exit {code}"
+        out.figures[sig.name] = "traceback" if traceback else "clean" if clean else f"exit {code}"
         out.bound(clean, f"{sig.name} did not shut down cleanly")
+        out.bound(not traceback, f"{sig.name} with a subscriber connected logged a traceback")
     return out

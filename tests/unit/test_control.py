@@ -1,5 +1,5 @@
 """Control server edge cases: numbers that would wedge the clock, slow subscribers, connection cap,
-and the daemon's rate-limited loop error handler."""
+stopping with clients connected, and the daemon's rate-limited loop error handler."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from typing import Any
 
 import pytest
 
+from emulator import control
 from emulator.clock import ScaledClock
 from emulator.control import MAX_CLIENTS, SUBSCRIBER_BACKLOG, ControlServer
 from emulator.daemon import ERROR_LOG_INTERVAL, _RateLimitedErrors
@@ -118,6 +119,51 @@ def test_connections_beyond_the_cap_are_refused_with_a_sentence(tmp_path: Path) 
         await server.stop()
 
     asyncio.run(scenario())
+
+
+async def until(condition: Any, what: str) -> None:
+    """Yield to the loop until `condition()` holds (a generous bound: this is no timing test)."""
+    for _ in range(2000):
+        if condition():
+            return
+        await asyncio.sleep(0.005)
+    raise AssertionError(f"never happened: {what}")
+
+
+def test_stop_ends_every_connection_so_none_is_left_to_be_cancelled(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A connection still served when the loop ends is cancelled with it, and asyncio (3.11) prints
+    a CancelledError traceback for each: the daemon's SIGTERM with `ctl watch` attached. `stop` ends
+    them all first: one idle, one mid-request, one whose peer stopped reading (cut off after
+    STOP_GRACE_S)."""
+    monkeypatch.setattr(control, "STOP_GRACE_S", 0.2)
+    path = tmp_path / "c.sock"
+    errors: list[dict[str, Any]] = []
+
+    async def scenario() -> None:
+        asyncio.get_running_loop().set_exception_handler(lambda loop, context: errors.append(context))
+        server = ControlServer(path, {}, ScaledClock())
+        await server.start()
+        idle = await asyncio.open_unix_connection(str(path))
+        _, mid = await asyncio.open_unix_connection(str(path))
+        mid.write(b'{"id": 1, "op": "li')
+        _, deaf = await asyncio.open_unix_connection(str(path))
+        deaf.write(b'{"op": "clock"}\n' * 20000)  # ~2 MB of replies it never reads
+        await until(lambda: len(server._clients) == 3, "three connections")
+        await until(
+            lambda: any(w.transport.get_write_buffer_size() > 0 for w in server._clients),
+            "the server's replies to the deaf client pile up",
+        )
+        await server.stop()
+        others = [task for task in asyncio.all_tasks() if task is not asyncio.current_task()]
+        assert others == [], "connection tasks left for asyncio.run to cancel"
+        assert await idle[0].read() == b"", "an idle client is told the channel closed"
+        for writer in (idle[1], mid, deaf):
+            writer.close()
+
+    asyncio.run(scenario())
+    assert errors == []
 
 
 def test_loop_errors_are_logged_once_per_interval_with_a_count(caplog) -> None:

@@ -1,5 +1,6 @@
 """NvStore: failures are raised as StorageError (never swallowed), writes stay atomic when the disk
-fails, and temporary files orphaned by a killed writer are removed at the next start (MS-111)."""
+fails, temporary files orphaned by a killed writer are removed at the next start (MS-111), and one
+process at a time owns a store file."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ import errno
 import json
 import logging
 import os
+import signal
 import subprocess
 import sys
 import threading
@@ -16,8 +18,18 @@ from pathlib import Path
 
 import pytest
 
-from emulator import nvstore
-from emulator.nvstore import LEGACY_TEMP_AGE_S, FlashWriter, NvStore, ReportingStore, StorageError
+from emulator import nvstore, runtime
+from emulator.nvstore import (
+    LEGACY_TEMP_AGE_S,
+    FlashWriter,
+    NvStore,
+    ReportingStore,
+    StateInUse,
+    StorageError,
+    lock_path,
+)
+
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def disk_full(fd: int) -> None:
@@ -56,7 +68,7 @@ def test_save_on_a_full_disk_raises_and_leaves_the_old_file(
     assert store.load() == {"v": 2}, "the in-memory flash holds the new data for the life of the model"
     monkeypatch.undo()
     assert NvStore(tmp_path, "dev").load() == {"v": 1}
-    assert os.listdir(tmp_path) == ["dev.json"], "the failed write's temporary file is gone"
+    assert sorted(os.listdir(tmp_path)) == [".dev.json.lock", "dev.json"], "the temporary file is gone"
 
 
 def test_save_into_an_unusable_state_dir_raises(tmp_path: Path) -> None:
@@ -268,3 +280,134 @@ def test_erase_drops_the_waiting_image_and_waits_for_the_write_in_progress(
     assert not (tmp_path / "dev.json").exists()
     assert gate.values() == [1]
     assert store.load() == {}
+
+
+# ---- one owner per store file ------------------------------------------------------------------
+
+#: another process: opens the store named on its command line, says so, and keeps it until killed
+HOLDER = (
+    "import sys; from pathlib import Path; from emulator.nvstore import NvStore;"
+    "store = NvStore(Path(sys.argv[1]), sys.argv[2]); store.save({'by': 'holder'});"
+    "print('held', flush=True); sys.stdin.read()"
+)
+#: another process: tries to open the store, prints the refusal or `opened`
+TRY = (
+    "import sys; from pathlib import Path; from emulator.nvstore import NvStore, StateInUse\n"
+    "try:\n    NvStore(Path(sys.argv[1]), sys.argv[2])\n"
+    "except StateInUse as exc:\n    print(exc)\nelse:\n    print('opened')"
+)
+
+
+#: the children import this checkout's emulator package
+CHILD_ENV = {**os.environ, "PYTHONPATH": str(ROOT)}
+
+
+def python(code: str, *args: str) -> list[str]:
+    return [sys.executable, "-c", code, *args]
+
+
+def other_process_opens(state: Path, device_id: str = "dev") -> str:
+    """What another process gets when it opens the store now."""
+    done = subprocess.run(
+        python(TRY, str(state), device_id), env=CHILD_ENV, capture_output=True, text=True, timeout=30
+    )
+    assert done.returncode == 0 and not done.stderr, done.stderr
+    return done.stdout.strip()
+
+
+@pytest.fixture
+def holder(tmp_path: Path) -> Iterator[subprocess.Popen[str]]:
+    """Another process that owns `tmp_path`'s store "dev" (and has saved into it)."""
+    child = subprocess.Popen(
+        python(HOLDER, str(tmp_path), "dev"),
+        env=CHILD_ENV,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    assert child.stdout is not None and child.stdout.readline() == "held\n"
+    yield child
+    if child.poll() is None:
+        child.kill()
+    child.wait()
+
+
+def test_a_store_file_owned_by_another_process_is_refused_with_its_pid(
+    tmp_path: Path, holder: subprocess.Popen[str]
+) -> None:
+    gone = dead_pid()
+    orphan = tmp_path / f".dev.json.{gone}.abc_123x.tmp"
+    orphan.write_text("x")
+    with pytest.raises(StateInUse) as refused:
+        NvStore(tmp_path, "dev")
+    assert refused.value.pid == holder.pid and refused.value.path == tmp_path / "dev.json"
+    assert (
+        str(refused.value) == f"non-volatile memory {tmp_path / 'dev.json'} is in use by process {holder.pid}"
+    )
+    assert isinstance(refused.value, ValueError), "what a stageemu:// URL raises for what it cannot open"
+    assert orphan.exists(), "a refused store touches nothing"
+    assert json.loads((tmp_path / "dev.json").read_text()) == {"by": "holder"}
+    assert NvStore(tmp_path, "other").load() == {}, "another device's file in the same folder is free"
+
+
+def test_a_killed_owner_blocks_nobody(tmp_path: Path, holder: subprocess.Popen[str]) -> None:
+    holder.send_signal(signal.SIGKILL)
+    holder.wait()
+    store = NvStore(tmp_path, "dev")  # the kernel dropped the lock with the process
+    assert store.load() == {"by": "holder"}
+    assert lock_path(tmp_path / "dev.json").read_text() == f"{os.getpid()}\n"
+    assert (
+        other_process_opens(tmp_path)
+        == f"non-volatile memory {tmp_path / 'dev.json'} is in use by process {os.getpid()}"
+    )
+
+
+def test_stores_of_one_process_share_the_claim_until_the_last_lets_go(tmp_path: Path) -> None:
+    """A model and the one a reset replaces it with, or the next open of a URL, are one owner; a
+    symlinked folder reaches the same file and the same claim."""
+    (tmp_path / "state").mkdir()
+    (tmp_path / "alias").symlink_to(tmp_path / "state")
+    first = NvStore(tmp_path / "state", "dev")
+    second = NvStore(tmp_path / "alias", "dev")
+    first.close()
+    assert "in use by process" in other_process_opens(tmp_path / "state")
+    second.close()
+    second.close()  # idempotent
+    assert other_process_opens(tmp_path / "state") == "opened"
+
+
+def test_a_collected_store_gives_up_its_claim(tmp_path: Path) -> None:
+    store = NvStore(tmp_path, "dev")
+    assert "in use" in other_process_opens(tmp_path)
+    del store  # no cycle: collected at once
+    assert other_process_opens(tmp_path) == "opened"
+
+
+def test_flash_writer_close_gives_up_its_stores_claims(tmp_path: Path) -> None:
+    writer = FlashWriter(tmp_path, Loop().deliver)
+    store = writer.open("dev", lambda failure: None)
+    store.save({"v": 1})
+    assert "in use" in other_process_opens(tmp_path)
+    writer.close()
+    assert other_process_opens(tmp_path) == "opened"
+    assert json.loads((tmp_path / "dev.json").read_text()) == {"v": 1}
+
+
+def test_a_store_that_cannot_be_locked_works_and_says_why(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    blocker = tmp_path / "state"
+    blocker.write_text("a file where the directory should be")
+    with caplog.at_level(logging.WARNING, logger="stage_emu.nvstore"):
+        store = NvStore(blocker, "dev")
+    assert f"cannot lock {blocker / 'dev.json'} ({blocker} is not a directory)" in caplog.text
+    with pytest.raises(StorageError, match="cannot save"):  # what the device then reports, as before
+        store.save({"v": 1})
+
+
+def test_off_posix_nothing_is_locked(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Windows has no flock: the in-process URL's `state=DIR` works there unclaimed."""
+    monkeypatch.setattr(runtime, "POSIX", False)
+    store = NvStore(tmp_path, "dev")
+    store.save({"v": 1})
+    assert not lock_path(tmp_path / "dev.json").exists()

@@ -270,7 +270,7 @@ def test_failed_ss_z_still_acks_and_is_flagged_until_a_save_works_ms111(
     }
     assert stored.dev.storage_error == f"cannot save {path}: No space left on device"
     assert f"cannot save {path}" in caplog.text
-    assert not path.exists() and os.listdir(tmp_path) == []
+    assert not path.exists() and os.listdir(tmp_path) == [".ms2000-0001.json.lock"]  # the owner's lock
     stored.input("power_cycle")  # the controller works on from its in-memory flash
     assert stored.cmd("S X?") == b":A X=3.300000\r\n"
     monkeypatch.undo()
