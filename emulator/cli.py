@@ -7,21 +7,21 @@ import json
 import logging
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Any, NoReturn
 
 import click
 
-from emulator import registry
 from emulator.cli_common import connect, fail
 from emulator.cli_gcode import gcode
+from emulator.cli_names import NamesHelp
 from emulator.cli_plot import plot
 from emulator.cli_session import proxy, replay_command
 from emulator.cli_trace import trace
 from emulator.cli_view import view
 from emulator.clock import MAX_SCALE, MAX_STEP, MIN_SCALE, check_scale, check_step
-from emulator.control import ControlClient, ControlFailure, RequestError
+from emulator.control import RequestError
+from emulator.control_client import ControlClient, ControlFailure
 from emulator.daemon import Daemon, DaemonOptions
-from emulator.device import HostServices
 from emulator.line import TIMINGS
 from emulator.profile import (
     ProfileError,
@@ -114,7 +114,14 @@ main.add_command(view)
 @click.option(
     "--state-dir",
     type=click.Path(file_okay=False, path_type=Path),
-    help="Where devices keep non-volatile memory.",
+    help="Where devices keep non-volatile memory (default $XDG_STATE_HOME/stage-emu, else "
+    "~/.local/state/stage-emu). A device's memory there belongs to one daemon at a time.",
+)
+@click.option(
+    "--no-state",
+    is_flag=True,
+    help="Keep the devices' non-volatile memory in memory only, for this run: nothing is read from or "
+    "saved to a state directory (e.g. beside a daemon that owns it).",
 )
 @click.option("--control", type=click.Path(dir_okay=False, path_type=Path), help="Control socket path.")
 @click.option(
@@ -131,6 +138,7 @@ def serve(
     ready_file: Path | None,
     log_traffic: Path | None,
     state_dir: Path | None,
+    no_state: bool,
     control: Path | None,
     link_dir: Path | None,
     verbose: bool,
@@ -141,7 +149,7 @@ def serve(
     `path` is stable: `pts` changes when a port is re-created (a `disconnect` fault); a network port
     has `path` socket://HOST:PORT (--tcp) or rfc2217://HOST:PORT (--rfc2217) and no `pts`. SIGINT,
     SIGTERM, SIGHUP and SIGQUIT stop it cleanly; SIGUSR1 reopens the traffic log. To run two daemons
-    at once, give the second its own --link-dir and --control."""
+    at once, give the second its own --link-dir, --control and --state-dir (or --no-state)."""
     logging.basicConfig(
         level=logging.INFO if verbose else logging.WARNING, format="stage-emu: %(message)s", stream=sys.stderr
     )
@@ -149,6 +157,8 @@ def serve(
         fail("give either a rig file or --profile options, not both")
     if tcp is not None and rfc2217 is not None:
         fail("give --tcp or --rfc2217, not both (a rig file can serve several ports)")
+    if no_state and state_dir is not None:
+        fail("give --state-dir or --no-state, not both")
     network = ("tcp", tcp) if tcp is not None else ("rfc2217", rfc2217) if rfc2217 is not None else None
     if network is not None and not profiles:
         fail(f"--{network[0]} goes with --profile (in a rig file, give the port `transport: {network[0]}`)")
@@ -157,9 +167,13 @@ def serve(
             spec = rig_from_profiles(list(profiles), network)
         else:
             spec = load_rig(rig if rig is not None else bundled_dir() / DEFAULT_RIG)
-        options = DaemonOptions(timing, time_scale, ready_file, log_traffic, state_dir, control, link_dir)
+        options = DaemonOptions(
+            timing, time_scale, ready_file, log_traffic, state_dir, control, link_dir, no_state
+        )
         code = asyncio.run(Daemon(spec, options).run())
-    except (SourceError, PortError, RequestError, SetupError) as exc:
+    except SourceError as exc:
+        fail_with(exc)
+    except (PortError, RequestError, SetupError) as exc:
         fail(str(exc))
     except OSError as exc:  # anything else the system refused at start: one line, no traceback
         fail(f"{exc.filename + ': ' if exc.filename else ''}{exc.strerror or exc}")
@@ -183,7 +197,8 @@ def profiles() -> None:
 @main.command()
 @click.argument("files", nargs=-1, required=True, type=click.Path(path_type=Path))
 def validate(files: tuple[Path, ...]) -> None:
-    """Check profile or rig FILES; exit 1 with the problems."""
+    """Check profile or rig FILES; exit 1 with every problem, one `file:line: key: problem` line each,
+    in file order (a file that cannot be read or parsed at all is one problem)."""
     failed = False
     for path in files:
         try:
@@ -193,20 +208,37 @@ def validate(files: tuple[Path, ...]) -> None:
                 load_profile(str(path.absolute()))
             click.echo(f"{path}: ok")
         except SourceError as exc:
-            click.echo(str(exc), err=True)
+            for line in problem_lines(exc):
+                click.echo(line, err=True)
             failed = True
     sys.exit(1 if failed else 0)
+
+
+def problem_lines(exc: SourceError) -> list[str]:
+    """Every problem a file was refused for, one line each, in file order."""
+    return exc.report() if isinstance(exc, ProfileError) else [str(exc)]
+
+
+def fail_with(exc: SourceError) -> NoReturn:
+    """`fail` with every problem of a refused file, each on its own `stage-emu:` line."""
+    *first, last = problem_lines(exc)
+    for line in first:
+        click.echo(f"stage-emu: {line}", err=True)
+    fail(last)
 
 
 @main.command()
 @click.argument("profile")
 @click.option("--json", "as_json", is_flag=True, help="Machine-readable output.")
 def describe(profile: str, as_json: bool) -> None:
-    """Print every knob of PROFILE: value, default, rule and meaning."""
+    """Print every knob of PROFILE: value, default, allowed values (type and range), rule and meaning."""
     try:
         loaded = load_profile(profile)
     except ProfileError as exc:
-        fail(_rig_hint(profile) or str(exc))
+        hint = _rig_hint(profile)
+        if hint:
+            fail(hint)
+        fail_with(exc)
     rows = loaded.describe()
     if as_json:
         click.echo(json.dumps([row.__dict__ for row in rows], indent=2, default=str, ensure_ascii=False))
@@ -220,13 +252,23 @@ def describe(profile: str, as_json: bool) -> None:
         else:
             default = json.dumps(plain(row.default), ensure_ascii=False)
             mark = "" if row.value == plain(row.default) else "  *"
-        table.append((row.path, value, default, row.rule, row.doc + mark))
+        table.append((row.path, value, default, _clipped(row.type), row.rule, row.doc + mark))
     # every column as wide as its widest cell, so long values keep the columns aligned
-    w_path, w_value, w_default, w_rule = (max(len(cells[i]) for cells in table) for i in range(4))
-    for path, value, default, rule, doc in table:
+    widths = [max(len(cells[i]) for cells in table) for i in range(5)]
+    for path, value, default, allowed, rule, doc in table:
+        w_path, w_value, w_default, w_allowed, w_rule = widths
         click.echo(
-            f"{path:<{w_path}}  {value:<{w_value}}  default {default:<{w_default}}  {rule:<{w_rule}}  {doc}"
+            f"{path:<{w_path}}  {value:<{w_value}}  default {default:<{w_default}}  "
+            f"allowed {allowed:<{w_allowed}}  {rule:<{w_rule}}  {doc}"
         )
+
+
+#: `describe`'s allowed-values column is cut here (`--json` has every type in full)
+ALLOWED_WIDTH = 48
+
+
+def _clipped(text: str) -> str:
+    return text if len(text) <= ALLOWED_WIDTH else text[: ALLOWED_WIDTH - 1] + "…"
 
 
 def _rig_hint(ref: str) -> str:
@@ -283,34 +325,6 @@ def _params(pairs: tuple[str, ...]) -> dict[str, Any]:
 def ctl_list(ctx: click.Context) -> None:
     """Devices, ports and attached hosts."""
     _run(ctx, {"op": "list"})
-
-
-class NamesHelp(click.Command):
-    """A command whose --help ends with the names the bundled profiles' devices accept."""
-
-    def __init__(self, *args: Any, kind: str, **kwargs: Any) -> None:
-        super().__init__(*args, **kwargs)
-        self._kind = kind
-
-    def format_epilog(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
-        with formatter.section(f"{self._kind.capitalize()} of the bundled profiles"):
-            formatter.write_dl([(name, ", ".join(names)) for name, names in _bundled_names(self._kind)])
-        formatter.write_paragraph()
-        formatter.write_text(f"`stage-emu ctl get DEVICE` lists a running device's {self._kind}.")
-        formatter.write("\n")
-
-
-def _bundled_names(kind: str) -> list[tuple[str, list[str]]]:
-    """Build each family's default model (no state directory) and ask it for its names."""
-    rows = []
-    for family in sorted(registry.families()):
-        try:
-            profile = load_profile(family)
-        except ProfileError:
-            continue  # a family without a bundled profile of its own name
-        model = registry.families()[family].factory(family, profile, 0.0, HostServices())
-        rows.append((family, model.control_names()[kind]))
-    return rows
 
 
 @ctl.command("get", cls=NamesHelp, kind="observables")
@@ -390,15 +404,23 @@ def ctl_clock(ctx: click.Context, scale: float | None, action: str | None, step:
 @click.option("--traffic", is_flag=True, help="Its traffic records (what the traffic log writes) instead.")
 @click.pass_context
 def ctl_watch(ctx: click.Context, device: str, traffic: bool) -> None:
-    """Print DEVICE's pushed events (or, with --traffic, its traffic records) until Ctrl-C."""
+    """Print DEVICE's pushed events (or, with --traffic, its traffic records) until Ctrl-C (exit 0);
+    a daemon that stops or goes away ends it with one line and exit 1."""
     with _client(ctx) as client:
         try:
             client.subscribe(device, traffic=traffic)
         except ControlFailure as exc:
             fail(str(exc))
+        except (OSError, ValueError) as exc:  # closed, reset, a garbled line: as `stage-emu view`
+            fail(f"lost the daemon: {exc}")
+        events = client.events(timeout=None)
         try:
-            for event in client.events(timeout=None):
-                click.echo(json.dumps(event))
+            while True:
+                try:
+                    event = next(events)
+                except (OSError, ValueError) as exc:
+                    fail(f"lost the daemon: {exc}")
+                click.echo(json.dumps(event))  # not in that try: a closed stdout is no lost daemon
         except KeyboardInterrupt:
             pass
 

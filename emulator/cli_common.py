@@ -8,7 +8,7 @@ from typing import NoReturn
 
 import click
 
-from emulator.control import ControlClient
+from emulator.control_client import ControlClient
 from emulator.runtime import SetupError, runtime_dir
 
 

@@ -1,4 +1,5 @@
-"""Control channel: JSON lines over a Unix socket (mode 0600), and its Python client.
+"""Control channel: JSON lines over a Unix socket (mode 0600); its Python client is
+emulator/control_client.py.
 
 One request per line, one reply per request, replies in order:
 
@@ -26,15 +27,12 @@ The device vocabulary (`in`, `get`, `ev` names) belongs to each device model.
 from __future__ import annotations
 
 import asyncio
-import builtins
 import contextlib
 import json
 import logging
 import os
-import socket
 import stat
-from collections import deque
-from collections.abc import Collection, Iterator
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
@@ -51,6 +49,9 @@ MAX_CLIENTS = 64
 #: Unsent event bytes a subscriber may have queued; past this its events are dropped (and counted)
 #: until it reads again, so a client that never reads cannot grow the daemon.
 SUBSCRIBER_BACKLOG = 64 * 1024
+#: Seconds a stopping server gives its clients to take what is queued for them before it cuts them
+#: off; a connection that is not over by then would be cancelled with the loop, with a traceback.
+STOP_GRACE_S = 1.0
 
 
 class RequestError(Exception):
@@ -70,10 +71,18 @@ class ControlServer:
         self._subscribers: dict[str, set[asyncio.StreamWriter]] = {}
         self._watchers: dict[str, set[asyncio.StreamWriter]] = {}
         self._clients: set[asyncio.StreamWriter] = set()
+        #: the task serving each connection: `stop` waits for them, so none is left to be cancelled
+        self._tasks: set[asyncio.Task[None]] = set()
         #: events dropped per subscriber connection since it last kept up
         self._dropped: dict[asyncio.StreamWriter, int] = {}
         #: (st_dev, st_ino) of the socket this server bound: the only thing `stop` may remove
         self._bound: tuple[int, int] | None = None
+        #: the instant the last `step` request stepped the clock to, until its reply is sent; and
+        #: the replies waiting for devices behind the clock to get there (emulator/lag.py)
+        self._step_target: float | None = None
+        self._step_waiters: list[asyncio.Future[None]] = []
+        for runner in runners.values():
+            runner.device_time.on_slice = self._wake_steps
 
     async def start(self) -> None:
         check_socket_path(self.path, "--control")
@@ -92,12 +101,25 @@ class ControlServer:
         os.chmod(self.path, 0o600)
 
     async def stop(self) -> None:
+        """Close the socket and every connection, and wait until each connection's task is over.
+
+        A connection still open when the loop ends has its task cancelled, and asyncio (3.11) then
+        logs a CancelledError traceback from the stream's done-callback: so each client is closed
+        (what is queued for it is still sent), given STOP_GRACE_S, then cut off."""
         if self._server is not None:
             self._server.close()
-            with contextlib.suppress(Exception):
-                await asyncio.wait_for(self._server.wait_closed(), 1.0)
         for writer in list(self._clients):
             writer.close()
+        self._wake_steps()  # a step's reply still waiting goes to a closed connection
+        if self._tasks:
+            await asyncio.wait(self._tasks, timeout=STOP_GRACE_S)
+        for writer in list(self._clients):
+            writer.transport.abort()  # a client that does not read: its queue goes unsent
+        if self._tasks:
+            await asyncio.wait(self._tasks, timeout=STOP_GRACE_S)
+        if self._server is not None:
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(self._server.wait_closed(), 1.0)
         if self._bound is not None:
             with contextlib.suppress(OSError):
                 info = self.path.lstat()
@@ -132,6 +154,10 @@ class ControlServer:
             writer.write(line)
 
     async def _serve(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        task = asyncio.current_task()
+        if task is not None:
+            self._tasks.add(task)
+            task.add_done_callback(self._tasks.discard)
         if len(self._clients) >= MAX_CLIENTS:
             writer.write(_reply(None, error=f"too many control connections (at most {MAX_CLIENTS})"))
             with contextlib.suppress(ConnectionError):
@@ -146,9 +172,13 @@ class ControlServer:
                 except (asyncio.LimitOverrunError, ValueError):
                     writer.write(_reply(None, error=f"request longer than {MAX_REQUEST} bytes"))
                     break
-                if not line:
+                if not line or writer.is_closing():  # `stop` closed it: what it still sent goes unserved
                     break
-                writer.write(self.handle_line(line, writer))
+                reply = self.handle_line(line, writer)
+                target, self._step_target = self._step_target, None
+                if target is not None:
+                    await self._until_devices_reach(target, writer)
+                writer.write(reply)
                 await writer.drain()
         except ConnectionError:
             pass
@@ -161,6 +191,24 @@ class ControlServer:
             self._dropped.pop(writer, None)
             self._clients.discard(writer)
             writer.close()
+
+    async def _until_devices_reach(self, target: float, writer: asyncio.StreamWriter) -> None:
+        """A `step` is answered once every device has run up to the instant it stepped to: a device
+        with much work in that time runs it over several turns of the loop (emulator/lag.py), and a
+        host that asks it something after the step expects the stepped state."""
+        loop = asyncio.get_running_loop()
+        while not writer.is_closing() and any(
+            r.clock.behind and r.device.now < target for r in self._runners.values()
+        ):
+            waiter: asyncio.Future[None] = loop.create_future()
+            self._step_waiters.append(waiter)
+            await waiter
+
+    def _wake_steps(self) -> None:
+        waiters, self._step_waiters = self._step_waiters, []
+        for waiter in waiters:
+            if not waiter.done():
+                waiter.set_result(None)
 
     def handle_line(self, line: bytes, writer: asyncio.StreamWriter | None = None) -> bytes:
         try:
@@ -253,6 +301,7 @@ class ControlServer:
             if "seconds" not in request:
                 raise RequestError("step needs 'seconds'")
             self._clock.step(check_step(request["seconds"]))
+            self._step_target = self._clock.now()
             return self._clock_state()
         if op is None:
             raise RequestError("a request needs 'op' (list, clock, pause, resume, step) or a 'device'")
@@ -290,6 +339,10 @@ def _describe(runner: DeviceRunner) -> dict[str, Any]:
         "family": profile.family,
         "profile": profile.name,
         "storage_error": runner.device.storage_error,
+        # device seconds the model is behind the clock, having more work than the CPU can do
+        # (emulator/lag.py); `lagging` while it has fallen behind within the last second
+        "behind_s": runner.clock.behind,
+        "lagging": runner.lag.lagging,
         "ports": ports,
     }
 
@@ -343,110 +396,3 @@ def _claim_socket_path(path: Path) -> None:
     if socket_is_live(path):
         raise SetupError(f"{path} is in use by a running stage-emu; stop it or pass --control another path")
     path.unlink()
-
-
-class ControlFailure(Exception):
-    """The daemon answered a request with an error."""
-
-
-class ControlClient:
-    """Blocking client for the control channel (stdlib only)."""
-
-    def __init__(self, path: str | Path, timeout: float = 10.0) -> None:
-        self._sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
-        self._sock.settimeout(timeout)
-        self._sock.connect(str(path))
-        self._buffer = b""
-        self._next_id = 0
-        self._events: deque[dict[str, Any]] = deque()
-
-    def close(self) -> None:
-        self._sock.close()
-
-    def __enter__(self) -> ControlClient:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    def request(self, request: dict[str, Any]) -> Any:
-        self._next_id += 1
-        ident = self._next_id
-        self._sock.sendall((json.dumps({**request, "id": ident}) + "\n").encode())
-        while True:
-            message = self._read_message()
-            if "ev" in message:
-                self._events.append(message)
-                continue
-            if message.get("id") != ident:
-                continue
-            if not message.get("ok"):
-                raise ControlFailure(message.get("error", "unknown error"))
-            return message.get("result")
-
-    def _read_message(self) -> dict[str, Any]:
-        while b"\n" not in self._buffer:
-            chunk = self._sock.recv(65536)
-            if not chunk:
-                raise ConnectionError("control channel closed")
-            self._buffer += chunk
-        line, self._buffer = self._buffer.split(b"\n", 1)
-        return json.loads(line)
-
-    def events(self, timeout: float | None = None) -> Iterator[dict[str, Any]]:
-        """Pushed events (after `subscribe`), buffered ones first; stops at `timeout` of silence."""
-        while True:
-            while self._events:
-                yield self._events.popleft()
-            previous = self._sock.gettimeout()
-            self._sock.settimeout(timeout)
-            try:
-                message = self._read_message()
-            except TimeoutError:
-                return
-            finally:
-                self._sock.settimeout(previous)
-            if "ev" in message:
-                yield message
-
-    def list(self) -> list[dict[str, Any]]:
-        return self.request({"op": "list"})
-
-    def get(self, device: str, name: str) -> Any:
-        return self.request({"device": device, "get": name})
-
-    def input(self, device: str, input_name: str, /, **params: Any) -> Any:
-        """Set a device input; positional-only so an input may itself take a `name` parameter."""
-        return self.request({"device": device, "in": input_name, **params})
-
-    def names(self, device: str) -> dict[str, builtins.list[str]]:  # `list` is a method here
-        """The device's input and observable names."""
-        return self.request({"device": device, "op": "names"})
-
-    def snapshot(self, device: str, path: str | None = None) -> Any:
-        return self.request({"device": device, "op": "snapshot", "path": path})
-
-    def reset(self, device: str) -> Any:
-        return self.request({"device": device, "op": "reset"})
-
-    def power_cycle(self, device: str) -> Any:
-        return self.request({"device": device, "op": "power_cycle"})
-
-    def fault(self, device: str, fault: str, port: str = "main", **params: Any) -> Any:
-        return self.request({"device": device, "op": "fault", "port": port, "fault": fault, **params})
-
-    def subscribe(self, device: str, traffic: bool = False) -> Any:
-        """Pushed events of `device` (see `events`); with `traffic`, its traffic records instead."""
-        return self.request({"device": device, "op": "subscribe", "traffic": traffic})
-
-    def clock(self, scale: float | None = None) -> Any:
-        return self.request({"op": "clock"} if scale is None else {"op": "clock", "scale": scale})
-
-    def pause(self) -> Any:
-        return self.request({"op": "pause"})
-
-    def resume(self) -> Any:
-        return self.request({"op": "resume"})
-
-    def step(self, seconds: float) -> Any:
-        return self.request({"op": "step", "seconds": seconds})

@@ -8,6 +8,9 @@ Signals: SIGINT, SIGTERM, SIGHUP (the terminal that ran it closed) and SIGQUIT s
 (links, socket and ready file removed, logs flushed, exit 0); SIGUSR1 reopens the traffic log (log
 rotation); SIGUSR2 logs one status line per device. The daemon removes only what it created
 (emulator/runtime.py keeps the record).
+
+Non-volatile memory has one owner at a time: a device store file another process holds (a daemon
+on the same --state-dir) stops start-up with one line naming its pid, before any port exists.
 """
 
 from __future__ import annotations
@@ -30,8 +33,10 @@ from emulator import registry
 from emulator.clock import ScaledClock
 from emulator.control import ControlServer
 from emulator.device import Device, HostServices, Store, StoreOpener, StoreReport
+from emulator.lag import WorkBudget
 from emulator.line import REALISTIC
-from emulator.nvstore import FlashWriter, StorageError
+from emulator.nvstore import FlashWriter, ReportingStore, StateInUse, StorageError
+from emulator.ratelimit import LOG_INTERVAL_S, LogLimiter, held_note
 from emulator.rig import DeviceSpec, Rig
 from emulator.runner import DeviceRunner
 from emulator.runtime import (
@@ -52,7 +57,7 @@ from emulator.transports import create as create_transport
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT)
 #: the same loop error is logged at most once per this many seconds (e.g. out of descriptors)
-ERROR_LOG_INTERVAL = 10.0
+ERROR_LOG_INTERVAL = LOG_INTERVAL_S
 
 log = logging.getLogger("stage_emu.daemon")
 
@@ -66,6 +71,8 @@ class DaemonOptions:
     state_dir: Path | None = None
     control_path: Path | None = None
     link_dir: Path | None = None
+    #: devices keep their non-volatile memory in memory only: nothing read from or saved to disk
+    no_state: bool = False
 
 
 def default_state_dir() -> Path:
@@ -88,6 +95,8 @@ class Daemon:
         self._errors = _RateLimitedErrors()
         #: writes every device's non-volatile memory on its own thread (emulator/nvstore.py)
         self._flash: FlashWriter | None = None
+        #: the devices that opened each device_id's memory (two devices of a rig may share one)
+        self._store_users: dict[str, list[str]] = {}
         self._closing = False
 
     async def run(self) -> int:
@@ -142,8 +151,19 @@ class Daemon:
                 self._traffic = TrafficLog(traffic)
             except OSError as exc:
                 raise SetupError(f"--log-traffic {traffic}: cannot open: {exc.strerror or exc}") from None
-        state_dir = self.options.state_dir or default_state_dir()
-        self._flash = FlashWriter(state_dir, loop.call_soon_threadsafe)
+        if not self.options.no_state:
+            state_dir = self.options.state_dir or default_state_dir()
+            self._flash = FlashWriter(state_dir, loop.call_soon_threadsafe)
+        # The models first: each claims its store file, so a refusal comes before any socket or port.
+        for spec in self.rig.devices:
+            self.runners[spec.name] = DeviceRunner(
+                _factory(spec, HostServices(stores=self._stores_for(spec.name))),
+                self.clock,
+                loop=loop,
+                traffic=self._traffic,
+                on_event=self._publish,
+                budget=WorkBudget(),  # one device behind the clock must not hold the loop (lag.py)
+            )
         control_path = (
             check_output_path(self.options.control_path, "--control")
             if self.options.control_path
@@ -155,14 +175,7 @@ class Daemon:
         await self.control.start()
         ready: list[dict[str, Any]] = []
         for spec in self.rig.devices:
-            runner = DeviceRunner(
-                _factory(spec, HostServices(stores=self._stores_for(spec.name))),
-                self.clock,
-                loop=loop,
-                traffic=self._traffic,
-                on_event=self._publish,
-            )
-            self.runners[spec.name] = runner
+            runner = self.runners[spec.name]
             for port in spec.ports:
                 default = spec.name if port.channel == "main" else f"{spec.name}.{port.channel}"
                 link = port.link or links / default
@@ -206,8 +219,27 @@ class Daemon:
                 else:
                     runner.call(lambda now: report(failure))
 
-            assert self._flash is not None
-            return self._flash.open(device_id, settled)
+            if self._flash is None:  # --no-state: the flash lives and dies with the model
+                return ReportingStore(None, device_id, report)
+            users = self._store_users.setdefault(device_id, [])
+            if device not in users:
+                if users:
+                    log.warning(
+                        "%s and %s share one non-volatile memory (device_id %s): each one's saves "
+                        "overwrite the other's; give each its own device_id in its profile or rig overrides",
+                        users[0],
+                        device,
+                        device_id,
+                    )
+                users.append(device)
+            try:
+                return self._flash.open(device_id, settled)
+            except StateInUse as exc:
+                owner = "another stage-emu" if exc.pid is None else f"another stage-emu (pid {exc.pid})"
+                raise SetupError(
+                    f"{device}: non-volatile memory {exc.path} is in use by {owner}; give this daemon "
+                    "its own --state-dir DIR, or --no-state to keep its devices' memory for this run only"
+                ) from None
 
         return open_store
 
@@ -263,23 +295,23 @@ def _raise_descriptor_limit() -> None:
 @dataclass
 class _RateLimitedErrors:
     """The loop's exception handler: one line per kind of error per ERROR_LOG_INTERVAL, with a count
-    of the repeats it held back. Resource exhaustion (out of descriptors, memory) floods otherwise:
-    asyncio retries `accept` and logs a traceback each time."""
+    of the repeats it held back (emulator/ratelimit.py, the policy the network ports share).
+    Resource exhaustion (out of descriptors, memory) floods otherwise: asyncio retries `accept` and
+    logs a traceback each time."""
 
     clock: Any = time.monotonic
-    _last: dict[str, tuple[float, int]] = field(default_factory=dict)
+    _limiter: LogLimiter = field(init=False)
+
+    def __post_init__(self) -> None:
+        self._limiter = LogLimiter(self.clock, ERROR_LOG_INTERVAL)
 
     def handle(self, loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
         exc = context.get("exception")
         message = context.get("message", "error")
-        key = f"{message}|{type(exc).__name__}|{getattr(exc, 'errno', '')}"
-        now = self.clock()
-        last, held = self._last.get(key, (float("-inf"), 0))
-        if now - last < ERROR_LOG_INTERVAL:
-            self._last[key] = (last, held + 1)
+        held = self._limiter.admit(f"{message}|{type(exc).__name__}|{getattr(exc, 'errno', '')}")
+        if held is None:
             return
-        self._last[key] = (now, 0)
-        repeats = f" (and {held} more like it)" if held else ""
+        repeats = held_note(held)
         if isinstance(exc, OSError):
             log.error("%s: %s%s", message, exc, repeats)
         else:

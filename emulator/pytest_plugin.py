@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING, Any
 import pytest
 
 if TYPE_CHECKING:
-    from emulator.control import ControlClient
+    from emulator.control_client import ControlClient
     from emulator.launcher import RunningDaemon
 
 #: marker -> what a test marked with it needs that only the emulator has

@@ -23,6 +23,7 @@ from typing import Any
 from emulator import mismatch
 from emulator.clock import Clock
 from emulator.device import Device, Emission, HostLine
+from emulator.lag import DeviceTime, WorkBudget
 from emulator.line import REALISTIC, settings_char_time
 from emulator.port import CORRUPT_MASK, Channel, Faults, fault_params, unsent
 from emulator.trafficlog import LOG_ONLY, DeviceTraffic, TrafficLog
@@ -69,25 +70,30 @@ class DeviceRunner:
         loop: asyncio.AbstractEventLoop | None = None,
         traffic: TrafficLog | None = None,
         on_event: Callable[[str, dict[str, Any]], None] | None = None,
+        budget: WorkBudget | None = None,
     ) -> None:
         self._make_device = make_device
-        self.clock = clock
         self.device = make_device(clock.now())
+        #: the device's own clock and the work budget of a step (lag.py)
+        self.device_time = DeviceTime(self.device.name, clock, budget)
+        #: the device's own time: `clock`, or behind it once the device could not keep up (lag.py)
+        self.clock = self.device_time.clock
+        self.lag = self.device_time.lag
         self.device.explain = traffic is not None
         self._traffic = None if traffic is None else DeviceTraffic(traffic, self.device.name)
         self.channels: dict[str, Channel] = {name: Channel(name) for name in self.device.channels}
         self._loop = loop
         self._on_event = on_event
-        self._timer: WallTimer | None = None if loop is None else make_timer(loop, self._on_timer)
+        self.device_timer: WallTimer | None = None if loop is None else make_timer(loop, self._on_timer)
         #: wall seconds output may leave early, given how late the timer wakes
-        self._early = RELEASE_EARLY_S if self._timer is None else self._timer.early
+        self._early = RELEASE_EARLY_S if self.device_timer is None else self.device_timer.early
         #: the device time the timer is armed for (None: not armed)
-        self._timer_due: float | None = None
+        self.device_timer_due: float | None = None
         self._actions: list[tuple[float, Callable[[], None]]] = []
         clock.on_change(self._on_clock_change)
 
     def _on_clock_change(self) -> None:
-        self._timer_due = None  # the same device time is now another wall delay: re-arm
+        self.device_timer_due = None  # the same device time is now another wall delay: re-arm
         self.pump()
 
     @property
@@ -123,8 +129,8 @@ class DeviceRunner:
 
     def close(self) -> None:
         self.device.shut_down(self.pump())
-        if self._timer is not None:
-            self._timer.close()
+        if self.device_timer is not None:
+            self.device_timer.close()
         for ch in self.channels.values():
             if ch.transport is not None:
                 ch.transport.close()
@@ -152,8 +158,7 @@ class DeviceRunner:
         self._set_host(ch, host)
 
     def _set_host(self, ch: Channel, host: HostLine | None) -> None:
-        now = self.clock.now()
-        self.device.advance(now)
+        now = self.device_time.run(self.device, self.clock.shared.now(), None)
         ch.host = host
         self.device.line_changed(host, now, ch.name)
         self.pump()
@@ -169,11 +174,14 @@ class DeviceRunner:
             and self._traffic is None
             and not ch.faults.hung
             and not (self._actions and self._actions[0][0] <= now)
+            and not self.clock.behind
+            and (self.device_timer_due is None or self.device_timer_due > now)
         ):
             # What `pump` would do with these bytes, without their round through the input pacer
             # and the step's checks before the model: unpaced (pacing is current, every step ends
-            # by updating it), with nothing queued ahead of them, nothing to log and no fault
-            # expiry due first, they reach the device at once (the common case with fast timing).
+            # by updating it), with nothing queued ahead of them, nothing to log, no fault expiry
+            # and nothing the timer waits for overdue (a backlog is worked off in budgeted steps),
+            # they reach the device at once (the common case with fast timing).
             self.device.receive(data, now, ch.name)
             self._finish_step(now)
             return
@@ -222,18 +230,21 @@ class DeviceRunner:
 
     def pump(self, at_least: float | None = None) -> float:
         """Bring the device and the ports up to the current device time, then re-arm the timer.
-        Returns the device time it brought them to."""
-        now = self.clock.now()
+        Returns the device time it brought them to: the clock's, unless the device fell behind it."""
+        now = self.clock.shared.now()  # a device behind the clock works towards it
         if at_least is not None and at_least > now:
             now = at_least
         if self._actions:
             self._run_actions(now)
         self._refresh_pacing()  # a host's or a reset's new settings pace what this step sends
-        device = self.device
-        for t, channel, data in self._due_input(now):
-            device.receive(data, t, channel)
+        now = self.device_time.run(self.device, now, self._deliver_input)
         self._finish_step(now)
         return now
+
+    def _deliver_input(self, now: float) -> None:
+        """Hand the device the host bytes due by `now`."""
+        for t, channel, data in self._due_input(now):
+            self.device.receive(data, t, channel)
 
     def _finish_step(self, now: float) -> None:
         """The rest of a step once the device has its input: it runs to `now`, what is due leaves,
@@ -410,24 +421,28 @@ class DeviceRunner:
         return None if due is None else self.clock.wall_delay(due)
 
     def _arm_timer(self, early: float | None = None) -> None:
-        timer = self._timer
+        timer = self.device_timer
         if timer is None:
             return
         if early is None:
             early = self.clock.device_span(self._early)
+        if self.clock.behind:  # a device behind the clock works on at the loop's next turn
+            self.device_timer_due = None
+            timer.arm(0.0)
+            return
         due = self._next_due(early)
-        if due == self._timer_due:
+        if due == self.device_timer_due:
             return
         delay = None if due is None else self.clock.wall_delay(due)
         if delay is None:  # nothing due, or time stands still
-            self._timer_due = None
+            self.device_timer_due = None
             timer.cancel()
         else:
-            self._timer_due = due
+            self.device_timer_due = due
             timer.arm(delay)
 
     def _on_timer(self) -> None:
-        due, self._timer_due = self._timer_due, None
+        due, self.device_timer_due = self.device_timer_due, None
         self.pump(at_least=due)
 
     # ---- control operations -------------------------------------------------------------------

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from emulator.cli import main as stage_emu
-from emulator.control import ControlClient
+from emulator.control_client import ControlClient
 from emulator.launcher import RunningDaemon, start_daemon
 from protocols.clients import MS2000
 

@@ -5,8 +5,11 @@ when a bound is exceeded (`make soak`; short forms of each attack run in `make t
 
 Attacks: flood (random bytes at full speed into every port), netflood (the same from a TCP and an
 RFC 2217 client that never reads), cycles (open/close every port),
-kill (kill -9 during `SS Z`, restart), subscriber (control client that never reads), signals,
-profiles (the hostile-profile corpus through `stage-emu validate`), fuzz (hypothesis examples per
+kill (kill -9 during `SS Z`, restart), subscriber (control client that never reads), starvation
+(devices with more work than the CPU can do at time scale 10 000, a neighbour polled), urlwrites
+(writes of up to 64 KiB on `stageemu://` ports), signals,
+profiles (the hostile-profile corpus through `stage-emu validate`), readers (hostile and huge
+inputs for `trace`, `plot`, `replay` and `gcode --dry-run`), fuzz (hypothesis examples per
 protocol model), modules (hypothesis examples per MS2000 module-command property and build).
 """
 
@@ -18,7 +21,6 @@ import os
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
@@ -29,8 +31,11 @@ sys.path.insert(0, str(ROOT))
 from scripts.soak import attacks  # noqa: E402
 from scripts.soak.attacks import Outcome  # noqa: E402
 from scripts.soak.hostile_profiles import write_cases  # noqa: E402
+from scripts.soak.hostile_readers import hostile_readers, run_command  # noqa: E402
 from scripts.soak.kill_save import kill_during_save  # noqa: E402
 from scripts.soak.probes import figure  # noqa: E402
+from scripts.soak.starvation import time_scale_starvation  # noqa: E402
+from scripts.soak.url_writes import url_writes  # noqa: E402
 
 FUZZ_FILES = ("tests/unit/mp285/test_mp285_fuzz.py", "tests/unit/ms2000/test_fuzz.py")
 #: the firmware modules' commands with hostile items, on every build that carries them
@@ -47,35 +52,15 @@ def hostile_profiles(workdir: Path) -> Outcome:
     slowest, largest = 0.0, 0.0
     cases = write_cases(workdir)
     for name, path, expected in cases:
-        code, stderr, took, rss = _validate(path)
-        slowest, largest = max(slowest, took), max(largest, rss)
-        lines = stderr.strip().splitlines()
-        out.bound(code == 1, f"{name}: exit {code}")
-        out.bound(len(lines) == 1 and expected in stderr, f"{name}: not one line with {expected!r}")
-        out.bound(took < PROFILE_SECONDS, f"{name}: took {took:.2f} s")
-        out.bound(rss < PROFILE_RSS_MB, f"{name}: {rss:.0f} MB")
+        run = run_command(["validate", str(path)])
+        slowest, largest = max(slowest, run.seconds), max(largest, run.rss_mb)
+        lines = run.stderr.strip().splitlines()
+        out.bound(run.code == 1, f"{name}: exit {run.code}")
+        out.bound(len(lines) == 1 and expected in run.stderr, f"{name}: not one line with {expected!r}")
+        out.bound(run.seconds < PROFILE_SECONDS, f"{name}: took {run.seconds:.2f} s")
+        out.bound(run.rss_mb < PROFILE_RSS_MB, f"{name}: {run.rss_mb:.0f} MB")
     out.figures.update(cases=len(cases), slowest_s=slowest, max_rss_mb=largest)
     return out
-
-
-def _validate(path: Path) -> tuple[int, str, float, float]:
-    """`stage-emu validate PATH`: exit code, stderr, wall seconds and peak RSS (MB) of that child."""
-    with tempfile.TemporaryFile("w+") as err:
-        start = time.monotonic()
-        proc = subprocess.Popen(
-            [sys.executable, "-m", "emulator.cli", "validate", str(path)],
-            stdout=subprocess.DEVNULL,
-            stderr=err,
-            cwd=ROOT,
-        )
-        watchdog = threading.Timer(60, proc.kill)  # a hang is a failure, not a stuck soak
-        watchdog.start()
-        _, status, usage = os.wait4(proc.pid, 0)  # per-child peak memory, which Popen.wait drops
-        watchdog.cancel()
-        took = time.monotonic() - start
-        proc.returncode = os.waitstatus_to_exitcode(status)
-        err.seek(0)
-        return proc.returncode, err.read(), took, usage.ru_maxrss / 1024
 
 
 def fuzz(examples: int, files: tuple[str, ...], what: str) -> Outcome:
@@ -115,8 +100,13 @@ def plan(args: argparse.Namespace, work: Path) -> dict[str, Callable[[], Outcome
         "cycles": lambda: attacks.open_close(work / "cycles", cycles=300 if quick else 10_000),
         "kill": lambda: kill(work / "kill", cycles=10 if quick else 1000),
         "subscriber": lambda: attacks.slow_subscriber(work / "subscriber", seconds=5 if quick else 60),
+        "starvation": lambda: time_scale_starvation(work / "starvation", seconds=5 if quick else 30),
+        "urlwrites": lambda: url_writes(work / "urlwrites", writes=30 if quick else 200),
         "signals": lambda: attacks.stop_signals(work / "signals"),
         "profiles": lambda: hostile_profiles(work / "profiles"),
+        "readers": lambda: hostile_readers(
+            work / "readers", log_mb=5 if quick else 40, gcode_moves=100_000 if quick else 2_000_000
+        ),
         "fuzz": lambda: fuzz(200 if quick else args.examples, FUZZ_FILES, "protocol model"),
         "modules": lambda: fuzz(
             100 if quick else args.examples, MODULE_FUZZ_FILES, "module-command property and build"

@@ -10,7 +10,7 @@ from typing import Any
 
 import serial
 
-from emulator.control import ControlClient
+from emulator.control_client import ControlClient
 
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 

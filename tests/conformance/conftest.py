@@ -28,7 +28,7 @@ import serial
 from serial import rfc2217
 
 import emulator.urlhandler  # noqa: F401  (registers stageemu:// URLs for --port)
-from emulator.control import ControlClient
+from emulator.control_client import ControlClient
 from emulator.profile import Profile, load_profile
 from emulator.registry import channels_of
 from emulator.urlhandler.url import SCHEME

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from scripts.soak import attacks
+from scripts.soak import attacks, starvation
 
 
 def test_flood_of_random_bytes_is_held_to_the_wire_rate(tmp_path: Path) -> None:
@@ -35,3 +35,14 @@ def test_subscriber_that_never_reads_costs_bounded_memory(tmp_path: Path) -> Non
     out = attacks.slow_subscriber(tmp_path, seconds=3)
     assert out.passed, (out.exceeded, out.figures)
     assert out.figures["events_published"] > 100, out.figures
+
+
+def test_devices_that_cannot_keep_up_fall_behind_instead_of_holding_the_daemon(tmp_path: Path) -> None:
+    """Three devices with more work than the CPU can do at time scale 10 000: before, the loop
+    stopped turning (no neighbour, no control channel, SIGTERM ignored, memory growing)."""
+    run = starvation.starve(tmp_path, seconds=3)
+    assert len(run.neighbour.samples) > 10 and len(run.control.samples) > 10
+    assert all(behind > 0 for behind in run.behind_s.values()), run.behind_s
+    assert run.lag_warnings == len(starvation.LOADS)
+    assert run.rss_after_mb - run.rss_before_mb < starvation.RSS_GROWTH_MB
+    assert run.exit_code == 0

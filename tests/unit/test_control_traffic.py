@@ -96,12 +96,14 @@ def test_a_reply_already_on_the_wire_when_watching_starts_is_not_recorded() -> N
     runner, port = stage(REALISTIC)
     server = ControlServer(Path("unused"), {"stage": runner}, ScaledClock())
     char = char_time(9600)
+    clock = runner.clock.shared
+    assert isinstance(clock, ManualClock)
     port.send(b"W X Y\rW Z\r")
-    runner.clock.advance(7 * char)  # `W X Y` is in and its reply on its way out; `W Z` still coming
+    clock.advance(7 * char)  # `W X Y` is in and its reply on its way out; `W Z` still coming
     assert port.take() == b":"
     writer = FakeWriter()
     ask(server, SUBSCRIBE, writer)
-    runner.clock.advance(0.1)
+    clock.advance(0.1)
     assert port.take() == b"A 0 0\r\n:A 0\r\n"
     rx, tx = writer.read_all()
     assert (rx["summary"], tx["summary"]) == ("W Z [WHERE]", ":A 0\\r\\n (reply to W Z [WHERE])")

@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 
-from emulator.control import ControlFailure
+from emulator.control_client import ControlFailure
 from tests.conformance.ms2000.conftest import ACK, IDLE, Host
 
 #: block 1 starts on ARM, block k on block k−1's COMPLETE, all delays 0 (TV-196, TV-220)
