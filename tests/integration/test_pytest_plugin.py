@@ -5,63 +5,30 @@ emulator port started here, with no control channel handed to the suite)."""
 from __future__ import annotations
 
 import os
+import re
 from pathlib import Path
 
 import pytest
 
 from emulator.launcher import start_daemon
+from tests.support.daemon import ROOT
 
 pytest_plugins = ["pytester"]
 
-HOST_PROGRAM = '''
-import time
-
-import serial
+README = ROOT / "README.md"
 
 
-class StageError(Exception):
-    pass
+def _readme_block(caption: str) -> str:
+    """The README's code block right after the line `caption` (its pytest example, tested as is)."""
+    text = README.read_text(encoding="utf-8")
+    after = text.index(caption + "\n")
+    block = re.search(r"```python\n(.*?)```", text[after:], re.DOTALL)
+    assert block is not None, caption
+    return block.group(1)
 
 
-def command(port: serial.Serial, text: str) -> str:
-    port.write(text.encode() + b"\\r")
-    reply = port.read_until(b"\\n").decode().strip()
-    if not reply or reply.startswith(":N"):
-        raise StageError(f"{text!r}: {reply or 'no reply'}")
-    return reply
-
-
-def move_x(port: serial.Serial, target: int) -> int:
-    """Move X to `target` (0.1 um), wait until it stops, return where it is."""
-    command(port, f"M X={target}")
-    while command(port, "/") == "B":
-        time.sleep(0.01)
-    position = int(command(port, "W X").split()[1])
-    if position != target:
-        raise StageError(f"X stopped at {position}, not {target}")
-    return position
-'''
-
-USER_TESTS = """
-import pytest
-import serial
-
-from host_stage import StageError, move_x
-
-
-def test_move_x_reads_back_the_target(stage_emu):
-    emu = stage_emu(profiles=["ms2000"])
-    with serial.Serial(emu.port("ms2000"), 9600, timeout=2) as port:
-        assert move_x(port, 1000) == 1000
-
-
-@pytest.mark.stage_emu_control
-def test_move_x_reports_a_closed_limit(stage_emu):
-    emu = stage_emu(profiles=["ms2000"])
-    emu.control.input("ms2000", "limit", axis="X", end="upper")
-    with serial.Serial(emu.port("ms2000"), 9600, timeout=2) as port, pytest.raises(StageError):
-        move_x(port, 5000)
-"""
+HOST_PROGRAM = _readme_block("The host program, `stage.py`:")
+USER_TESTS = _readme_block("Its tests, `test_stage.py`:")
 
 # each test notes its daemon's pid, so the outer test can check that none outlives the run
 LIFECYCLE_TESTS = """
@@ -113,7 +80,7 @@ def _process_exists(pid: int) -> bool:
 
 
 def test_user_suite_on_the_emulator_leaves_no_daemon(pytester: pytest.Pytester) -> None:
-    pytester.makepyfile(host_stage=HOST_PROGRAM, test_stage=USER_TESTS, test_lifecycle=LIFECYCLE_TESTS)
+    pytester.makepyfile(stage=HOST_PROGRAM, test_stage=USER_TESTS, test_lifecycle=LIFECYCLE_TESTS)
     # a TTL REPORT build: its auxiliary port is served beside the main one
     pytester.makefile(".yaml", rig='{"spec": 1, "devices": [{"name": "stage", "profile": "ms2000-ttlrep"}]}')
     result = pytester.runpytest_subprocess("-p", "no:cacheprovider", timeout=60)
@@ -126,13 +93,14 @@ def test_user_suite_on_the_emulator_leaves_no_daemon(pytester: pytest.Pytester) 
     assert not [pid for pid in [*function_pids, *session_pids] if _process_exists(pid)]
 
 
+@pytest.mark.parametrize("transport", [[], ["--rfc2217", "127.0.0.1:0"]], ids=["pty", "rfc2217"])
 def test_real_port_switch_uses_the_port_and_skips_marked_tests(
-    pytester: pytest.Pytester, tmp_path: Path
+    pytester: pytest.Pytester, tmp_path: Path, transport: list[str]
 ) -> None:
-    # an emulator port standing in for a real controller: the suite gets only its path
-    hardware = start_daemon(tmp_path / "hardware", ["--profile", "ms2000", "--timing", "fast"], 1)
+    # an emulator port standing in for a real controller: the suite gets only its path (or URL)
+    hardware = start_daemon(tmp_path / "hardware", ["--profile", "ms2000", "--timing", "fast", *transport], 1)
     try:
-        pytester.makepyfile(host_stage=HOST_PROGRAM, test_stage=USER_TESTS)
+        pytester.makepyfile(stage=HOST_PROGRAM, test_stage=USER_TESTS)
         port = hardware.port("ms2000")
         result = pytester.runpytest_subprocess(
             "-p",
