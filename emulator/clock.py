@@ -3,7 +3,8 @@
 Every delay in every device model and in line pacing is expressed in *device seconds*. A clock maps
 device time to wall time: the real clock one to one, the scaled clock `scale` device seconds per
 wall second (pausable and steppable from the control channel), the manual clock not at all (tests
-move it explicitly, so runs are exact and deterministic).
+move it explicitly, so runs are exact and deterministic), and the virtual clock not at all either:
+it is moved by whoever hosts the device, whenever the host program waits (emulator/urlhandler).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ from __future__ import annotations
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
+from typing import Protocol
 
 from emulator.schema import finite_number, show_number
 
@@ -154,3 +156,50 @@ class ManualClock(Clock):
             raise ValueError(f"cannot set time backwards ({device_time} < {self._now})")
         self._now = device_time
         self._changed()
+
+
+class VirtualClock(ManualClock):
+    """Device time that passes only when its host moves it: an in-process port in virtual time
+    advances it to the next thing due whenever the host program waits (a read with a timeout, a
+    write the wire has no room for), so a 10 s move costs no wall time and every instant is exact.
+
+    It takes the control channel's clock requests as a scaled clock does: `step` moves it, while
+    `scale`, `pause` and `resume` are kept and reported but change nothing (time here runs only as
+    fast as the host waits)."""
+
+    def __init__(self, start: float = 0.0) -> None:
+        super().__init__(start)
+        self.scale = 1.0
+        self.paused = False
+
+    def set_scale(self, scale: float) -> None:
+        self.scale = check_scale(scale)
+
+    def pause(self) -> None:
+        self.paused = True
+
+    def resume(self) -> None:
+        self.paused = False
+
+    def step(self, seconds: float) -> None:
+        self.advance(check_step(seconds))
+
+
+class ControlledClock(Protocol):
+    """What the control channel's clock requests drive (`ScaledClock`, `VirtualClock`)."""
+
+    @property
+    def scale(self) -> float: ...
+
+    @property
+    def paused(self) -> bool: ...
+
+    def now(self) -> float: ...
+
+    def set_scale(self, scale: float) -> None: ...
+
+    def pause(self) -> None: ...
+
+    def resume(self) -> None: ...
+
+    def step(self, seconds: float) -> None: ...

@@ -36,7 +36,7 @@ from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
-from emulator.clock import ScaledClock, check_scale, check_step
+from emulator.clock import ControlledClock, check_scale, check_step
 from emulator.device import ControlError
 from emulator.runner import DeviceRunner
 from emulator.runtime import SetupError, check_socket_path, socket_is_live
@@ -60,7 +60,11 @@ class RequestError(Exception):
 
 class ControlServer:
     def __init__(
-        self, path: Path, runners: dict[str, DeviceRunner], clock: ScaledClock, traffic: Path | None = None
+        self,
+        path: Path,
+        runners: dict[str, DeviceRunner],
+        clock: ControlledClock,
+        traffic: Path | None = None,
     ) -> None:
         self.path = path
         self._runners = runners

@@ -1,11 +1,15 @@
 """The control channel's blocking Python client (stdlib only): what `stage-emu ctl`, `view`, the
-launcher and the tests use to talk to a running daemon (emulator/control.py has the protocol)."""
+launcher and the tests use to talk to a running daemon (emulator/control.py has the protocol).
+
+`ControlRequests` is the client's vocabulary on top of one `request` call; `ControlClient` sends it
+over the daemon's socket, and an in-process port answers the same (emulator/urlhandler/control.py)."""
 
 from __future__ import annotations
 
 import builtins
 import json
 import socket
+from abc import ABC, abstractmethod
 from collections import deque
 from collections.abc import Iterator
 from pathlib import Path
@@ -16,8 +20,62 @@ class ControlFailure(Exception):
     """The daemon answered a request with an error."""
 
 
-class ControlClient:
-    """Blocking client for the control channel (stdlib only)."""
+class ControlRequests(ABC):
+    """The control channel's requests as methods, on top of `request` (one reply per request)."""
+
+    @abstractmethod
+    def request(self, request: dict[str, Any]) -> Any:
+        """Send one request; its `result`, or ControlFailure with the daemon's `error`."""
+
+    @abstractmethod
+    def events(self, timeout: float | None = None) -> Iterator[dict[str, Any]]:
+        """Pushed events (after `subscribe`), buffered ones first; stops at `timeout` of silence."""
+
+    def list(self) -> list[dict[str, Any]]:
+        return self.request({"op": "list"})
+
+    def get(self, device: str, name: str) -> Any:
+        return self.request({"device": device, "get": name})
+
+    def input(self, device: str, input_name: str, /, **params: Any) -> Any:
+        """Set a device input; positional-only so an input may itself take a `name` parameter."""
+        return self.request({"device": device, "in": input_name, **params})
+
+    def names(self, device: str) -> dict[str, builtins.list[str]]:  # `list` is a method here
+        """The device's input and observable names."""
+        return self.request({"device": device, "op": "names"})
+
+    def snapshot(self, device: str, path: str | None = None) -> Any:
+        return self.request({"device": device, "op": "snapshot", "path": path})
+
+    def reset(self, device: str) -> Any:
+        return self.request({"device": device, "op": "reset"})
+
+    def power_cycle(self, device: str) -> Any:
+        return self.request({"device": device, "op": "power_cycle"})
+
+    def fault(self, device: str, fault: str, port: str = "main", **params: Any) -> Any:
+        return self.request({"device": device, "op": "fault", "port": port, "fault": fault, **params})
+
+    def subscribe(self, device: str, traffic: bool = False) -> Any:
+        """Pushed events of `device` (see `events`); with `traffic`, its traffic records instead."""
+        return self.request({"device": device, "op": "subscribe", "traffic": traffic})
+
+    def clock(self, scale: float | None = None) -> Any:
+        return self.request({"op": "clock"} if scale is None else {"op": "clock", "scale": scale})
+
+    def pause(self) -> Any:
+        return self.request({"op": "pause"})
+
+    def resume(self) -> Any:
+        return self.request({"op": "resume"})
+
+    def step(self, seconds: float) -> Any:
+        return self.request({"op": "step", "seconds": seconds})
+
+
+class ControlClient(ControlRequests):
+    """Blocking client for a daemon's control socket (stdlib only)."""
 
     def __init__(self, path: str | Path, timeout: float = 10.0) -> None:
         self._sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
@@ -75,45 +133,3 @@ class ControlClient:
                 self._sock.settimeout(previous)
             if "ev" in message:
                 yield message
-
-    def list(self) -> list[dict[str, Any]]:
-        return self.request({"op": "list"})
-
-    def get(self, device: str, name: str) -> Any:
-        return self.request({"device": device, "get": name})
-
-    def input(self, device: str, input_name: str, /, **params: Any) -> Any:
-        """Set a device input; positional-only so an input may itself take a `name` parameter."""
-        return self.request({"device": device, "in": input_name, **params})
-
-    def names(self, device: str) -> dict[str, builtins.list[str]]:  # `list` is a method here
-        """The device's input and observable names."""
-        return self.request({"device": device, "op": "names"})
-
-    def snapshot(self, device: str, path: str | None = None) -> Any:
-        return self.request({"device": device, "op": "snapshot", "path": path})
-
-    def reset(self, device: str) -> Any:
-        return self.request({"device": device, "op": "reset"})
-
-    def power_cycle(self, device: str) -> Any:
-        return self.request({"device": device, "op": "power_cycle"})
-
-    def fault(self, device: str, fault: str, port: str = "main", **params: Any) -> Any:
-        return self.request({"device": device, "op": "fault", "port": port, "fault": fault, **params})
-
-    def subscribe(self, device: str, traffic: bool = False) -> Any:
-        """Pushed events of `device` (see `events`); with `traffic`, its traffic records instead."""
-        return self.request({"device": device, "op": "subscribe", "traffic": traffic})
-
-    def clock(self, scale: float | None = None) -> Any:
-        return self.request({"op": "clock"} if scale is None else {"op": "clock", "scale": scale})
-
-    def pause(self) -> Any:
-        return self.request({"op": "pause"})
-
-    def resume(self) -> Any:
-        return self.request({"op": "resume"})
-
-    def step(self, seconds: float) -> Any:
-        return self.request({"op": "step", "seconds": seconds})

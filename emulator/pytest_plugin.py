@@ -6,7 +6,10 @@
         emu.control.input("ms2000", "joystick", x=0.5)
 
 `stage_emu` starts a daemon per call and stops it when the test ends, passed or failed;
-`stage_emu_session` returns the same daemon for the same arguments all session long. Each daemon
+`stage_emu_session` returns the same daemon for the same arguments all session long. With
+`time="virtual"` the devices run in the test's process instead, in virtual time
+(emulator/pytest_virtual.py): `emu.port(...)` is then a `stageemu://` URL, opened with
+`serial.serial_for_url`. Each daemon
 lives in a private temporary directory: its links, control socket, state and owner records (its
 runtime directory) never touch the user's. With `--stage-emu-port PATH --stage-emu-device NAME` the
 fixtures start nothing and hand out the real port instead (`.control` is None), and tests marked
@@ -20,16 +23,18 @@ import os
 import shutil
 import subprocess
 import tempfile
+import time
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import pytest
 
 if TYPE_CHECKING:
-    from emulator.control_client import ControlClient
+    from emulator.control_client import ControlRequests
     from emulator.launcher import RunningDaemon
+    from emulator.urlhandler.hosted import HostedDevice
 
 #: marker -> what a test marked with it needs that only the emulator has
 EMULATOR_ONLY = {
@@ -78,11 +83,34 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 @dataclass
 class StageEmu:
     """What the fixtures return: the ports by link name (`ms2000`, `ms2000-ttlrep.aux`), the
-    control client and the daemon (both None on a real port)."""
+    control client and the daemon (both None on a real port; no daemon in virtual time, where
+    `devices` holds the in-process devices)."""
 
     ports: dict[str, str]
-    control: ControlClient | None
+    control: ControlRequests | None
     daemon: RunningDaemon | None
+    devices: dict[str, HostedDevice] = field(default_factory=dict)
+
+    @property
+    def virtual(self) -> bool:
+        return bool(self.devices)
+
+    def advance(self, seconds: float) -> None:
+        """Let `seconds` of device time pass at once on every device (virtual time only)."""
+        if not self.virtual:
+            raise RuntimeError("advance needs time='virtual' (a daemon's time runs by itself)")
+        from emulator.pytest_virtual import advance
+
+        advance(self.devices, seconds)
+
+    def sleep(self, seconds: float) -> None:
+        """A stand-in for `time.sleep` in a host program under test: in virtual time the devices'
+        time passes instead of the wall clock's (monkeypatch the host's sleep with it); otherwise
+        it is `time.sleep`."""
+        if self.virtual:
+            self.advance(seconds)
+        else:
+            time.sleep(seconds)
 
     def port(self, device: str, channel: str = "main") -> str:
         name = device if channel == "main" else f"{device}.{channel}"
@@ -94,11 +122,14 @@ class StageEmu:
 
 
 class StageEmuFactory:
-    """`factory(profiles=("ms2000",), rig=None, timing="fast", time_scale=1.0, **options)`.
+    """`factory(profiles=("ms2000",), rig=None, timing="fast", time_scale=1.0, time="real",
+    **options)`.
 
     Serves `profiles` (`NAME[:LINK]`, as `serve --profile`) or a `rig` file (relative to the
     rootdir); further `serve` options by keyword: `log_traffic=path`, `verbose=True`. With `reuse`,
-    calls with the same arguments share one daemon. `close` stops every daemon started."""
+    calls with the same arguments share one daemon. `time="virtual"` serves `profiles` in this
+    process in virtual time instead (no daemon, no rig, no options). `close` stops every daemon
+    started and switches every in-process device off."""
 
     def __init__(self, config: pytest.Config, *, reuse: bool) -> None:
         self._config = config
@@ -111,6 +142,7 @@ class StageEmuFactory:
         rig: str | Path | None = None,
         timing: str | None = "fast",
         time_scale: float = 1.0,
+        time: str = "real",
         **options: Any,
     ) -> StageEmu:
         real_port = self._config.getoption("stage_emu_port")
@@ -118,10 +150,16 @@ class StageEmuFactory:
             return StageEmu({self._config.getoption("stage_emu_device"): real_port}, None, None)
         if isinstance(profiles, str):  # `profiles="ms2000"` would otherwise serve m, s, 2...
             profiles = [profiles]
+        if time not in ("real", "virtual"):
+            raise TypeError(f"stage_emu: time must be 'real' or 'virtual', got {time!r}")
+        if time == "virtual" and (rig is not None or options or time_scale != 1.0):
+            raise TypeError("stage_emu: virtual time serves profiles only (no rig, options or time_scale)")
         rig_path = None if rig is None else self._config.rootpath / rig
-        key = repr((list(profiles), rig_path, timing, time_scale, sorted(options.items())))
+        key = repr((list(profiles), rig_path, timing, time_scale, time, sorted(options.items())))
         if not self._reuse:
             key += f"#{len(self._started)}"
+        if key not in self._started and time == "virtual":
+            self._started[key] = _serve_virtual(profiles, timing or "realistic")
         if key not in self._started:
             args = [str(rig_path)] if rig_path else [word for p in profiles for word in ("--profile", p)]
             if timing is not None:
@@ -134,9 +172,11 @@ class StageEmuFactory:
         started, self._started = list(self._started.values()), {}
         with contextlib.ExitStack() as stopping:  # every daemon is stopped even if one stop raises
             for emu in started:
-                assert emu.daemon is not None
-                stopping.callback(shutil.rmtree, emu.daemon.workdir, ignore_errors=True)
-                stopping.callback(_stop, emu.daemon)
+                for device in emu.devices.values():
+                    stopping.callback(device.close)
+                if emu.daemon is not None:
+                    stopping.callback(shutil.rmtree, emu.daemon.workdir, ignore_errors=True)
+                    stopping.callback(_stop, emu.daemon)
 
 
 def _serve_flags(options: dict[str, Any]) -> list[str]:
@@ -159,6 +199,15 @@ def _port_count(profiles: Sequence[str], rig: Path | None) -> int:
 
     spec = load_rig(rig) if rig is not None else rig_from_profiles(list(profiles))
     return sum(len(device.ports) for device in spec.devices)
+
+
+def _serve_virtual(profiles: Sequence[str], timing: str) -> StageEmu:
+    # imported here: most test runs of the environment never serve a device
+    import emulator.urlhandler  # noqa: F401  (teaches pyserial the stageemu:// URLs it hands out)
+    from emulator.pytest_virtual import InProcessControls, ports_of, serve_virtual
+
+    devices = serve_virtual(profiles, timing)
+    return StageEmu(ports_of(devices), InProcessControls(devices), None, devices)
 
 
 def _launch(args: list[str], port_count: int) -> StageEmu:

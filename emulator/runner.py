@@ -414,10 +414,14 @@ class DeviceRunner:
                 due = into
         return due
 
+    def next_due(self) -> float | None:
+        """The device instant the runner next has something to do (None: nothing is scheduled), for
+        a host that pumps it itself instead of giving it a loop."""
+        return self._next_due(self.clock.device_span(self._early))
+
     def wall_until_due(self) -> float | None:
-        """Wall seconds until the runner next has something to do (None: nothing is scheduled, or
-        time stands still), for a host that pumps it itself instead of giving it a loop."""
-        due = self._next_due(self.clock.device_span(self._early))
+        """Wall seconds until `next_due` (None: nothing is scheduled, or time stands still)."""
+        due = self.next_due()
         return None if due is None else self.clock.wall_delay(due)
 
     def _arm_timer(self, early: float | None = None) -> None:

@@ -44,6 +44,11 @@ class InProcessTransport(Transport):
         """The host opened the port with these settings."""
         self._port().host_attached(host)
 
+    def detach(self) -> None:
+        """The host closed the port (the runner keeps it, for the next host to open)."""
+        self._port().host_detached()
+        self.received.clear()
+
     def change_line(self, host: HostLine) -> None:
         self._port().host_line(host)
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import serial
 from serial.serialutil import (
     PARITY_EVEN,
     PARITY_NONE,
@@ -23,9 +24,10 @@ from serial.serialutil import (
     SerialException,
 )
 
-from emulator.device import HostLine
-from emulator.urlhandler.hosted import Deadline, HostedDevice
-from emulator.urlhandler.url import parse_url
+from emulator.device import MAIN, HostLine
+from emulator.urlhandler.control import HostedControl
+from emulator.urlhandler.hosted import HostedDevice, served
+from emulator.urlhandler.url import AttachOptions, parse_url
 
 _PARITY_NAMES = {PARITY_NONE: "none", PARITY_EVEN: "even", PARITY_ODD: "odd"}
 
@@ -39,8 +41,15 @@ class Serial(SerialBase):
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         # set before SerialBase's __init__, which opens the port when given one
         self._device: HostedDevice | None = None
+        #: which of the device's ports this is (the main one, unless `open_channel` made it)
+        self._channel = MAIN
         #: the settings the model was last told (pyserial reconfigures on every timeout change too)
         self._line: HostLine | None = None
+        self._control: HostedControl | None = None
+        #: whether the device is this port's own (made by opening it), switched off with it
+        self._owner = False
+        #: the device's other ports opened from this one (`open_channel`), closed with it
+        self._others: list[serial.SerialBase] = []
         super().__init__(*args, **kwargs)
 
     def open(self) -> None:
@@ -49,20 +58,59 @@ class Serial(SerialBase):
         if self.port is None:
             raise SerialException("Port must be configured before it can be used.")
         url = str(self.port)
+        options = parse_url(url)
         self._line = self._host_line()
-        self._device = HostedDevice(url, parse_url(url), self._line)
+        if isinstance(options, AttachOptions):
+            device, self._owner = served(options.key), False
+            device.open_channel(options.channel, self._line)
+            self._device, self._channel = device, options.channel
+        else:
+            self._device, self._owner = HostedDevice(url, options, self._line), True
         self.is_open = True
 
     def close(self) -> None:
-        if self._device is not None:
-            self._device.close()
-            self._device = None
+        for other in self._others:
+            other.close()
+        device, self._device = self._device, None
+        if device is not None:
+            device.close_channel(self._channel)
+            if self._owner:  # the port's own device: switched off with it
+                device.close()
         self.is_open = False
 
     def _open_device(self) -> HostedDevice:
         if not self.is_open or self._device is None:
             raise PortNotOpenError()
         return self._device
+
+    # ---- beyond pyserial: the device's other ports, its control channel, virtual time -----------
+
+    def open_channel(self, channel: str, **settings: Any) -> serial.SerialBase:
+        """The device's port `channel` (the MS2000 TTL REPORT's `aux`) as a pyserial port of its
+        own, opened with pyserial's keyword `settings`; it closes with this one."""
+        other = serial.serial_for_url(self._open_device().url(channel), **settings)
+        self._others.append(other)
+        return other
+
+    @property
+    def control(self) -> HostedControl:
+        """The device's control channel, in this process: the daemon's requests (`input`, `get`,
+        `fault`, `reset`, `step`, `subscribe` ...) with `stage-emu ctl`'s client methods."""
+        if self._control is None:
+            self._control = HostedControl(self._open_device())
+        return self._control
+
+    @property
+    def device_time(self) -> float:
+        """The device's time now, in seconds (in virtual time, the host's clock too)."""
+        return self._open_device().now()
+
+    def advance(self, seconds: float) -> None:
+        """Let `seconds` of device time pass at once (virtual time only: `?time=virtual`)."""
+        device = self._open_device()
+        if not device.time.virtual:
+            raise SerialException(f"{self.port}: advance needs virtual time (?time=virtual)")
+        self.control.step(seconds)
 
     # ---- settings -------------------------------------------------------------------------------
 
@@ -85,42 +133,42 @@ class Serial(SerialBase):
         device = self._open_device()
         if host != self._line:
             self._line = host
-            device.set_line(host)
+            device.set_line(self._channel, host)
 
     # ---- data -----------------------------------------------------------------------------------
 
     @property
     def in_waiting(self) -> int:
-        return self._open_device().in_waiting()
+        return self._open_device().in_waiting(self._channel)
 
     @property
     def out_waiting(self) -> int:
-        return self._open_device().out_waiting()
+        return self._open_device().out_waiting(self._channel)
 
     def read(self, size: int = 1) -> bytes:
         device = self._open_device()
-        return device.read(size, Deadline.after(self.timeout), self.inter_byte_timeout)
+        return device.read(self._channel, size, device.deadline(self.timeout), self.inter_byte_timeout)
 
     def write(self, data: bytes | bytearray | memoryview) -> int:  # type: ignore[override]
         device = self._open_device()
         timeout = self.write_timeout
-        return device.write(bytes(data), Deadline.after(timeout), non_blocking=timeout == 0)
+        return device.write(self._channel, bytes(data), device.deadline(timeout), non_blocking=timeout == 0)
 
     def flush(self) -> None:
         """Wait until all data written has been sent."""
-        self._open_device().drain()
+        self._open_device().drain(self._channel)
 
     def reset_input_buffer(self) -> None:
-        self._open_device().discard_input()
+        self._open_device().discard_input(self._channel)
 
     def reset_output_buffer(self) -> None:
-        self._open_device().discard_output()
+        self._open_device().discard_output(self._channel)
 
     def cancel_read(self) -> None:
-        self._open_device().cancel_read()
+        self._open_device().cancel_read(self._channel)
 
     def cancel_write(self) -> None:
-        self._open_device().cancel_write()
+        self._open_device().cancel_write(self._channel)
 
     # ---- modem lines ----------------------------------------------------------------------------
     # The models have no modem-line inputs (RTS/CTS flow control reaches them as a line setting),

@@ -1,4 +1,6 @@
-"""`stageemu://PROFILE?timing=fast|realistic&scale=X&state=DIR` (or `stageemu://?profile=PATH`).
+"""`stageemu://PROFILE?timing=fast|realistic&time=real|virtual&scale=X&state=DIR` (or
+`stageemu://?profile=PATH`): a new device of its own; `stageemu://?attach=KEY[&channel=NAME]`: a port
+on a device already served in this process (`HostedDevice.url`, the pytest plugin's virtual time).
 
 PROFILE is a bundled profile name; a profile file goes in `?profile=` (a path does not fit in a URL's
 host part). Every problem is a ValueError with a one-line message, pyserial's convention for URLs.
@@ -11,11 +13,17 @@ from pathlib import Path
 from urllib.parse import parse_qs, urlsplit
 
 from emulator.clock import check_scale
+from emulator.device import MAIN
 from emulator.line import REALISTIC, TIMINGS
 
 SCHEME = "stageemu"
-PARAMETERS = ("profile", "timing", "scale", "state")
-FORM = f"{SCHEME}://PROFILE[?timing=fast|realistic&scale=X&state=DIR] or {SCHEME}://?profile=PATH[&...]"
+PARAMETERS = ("profile", "timing", "time", "scale", "state", "attach", "channel")
+FORM = (
+    f"{SCHEME}://PROFILE[?timing=fast|realistic&time=real|virtual&scale=X&state=DIR] "
+    f"or {SCHEME}://?profile=PATH[&...] or {SCHEME}://?attach=KEY[&channel=NAME]"
+)
+REAL = "real"
+VIRTUAL = "virtual"
 
 
 @dataclass(frozen=True)
@@ -24,13 +32,24 @@ class UrlOptions:
 
     profile: str
     timing: str = REALISTIC
+    #: REAL: device time runs with the wall clock (times `scale`); VIRTUAL: it passes only when the
+    #: host waits, at once (emulator/urlhandler/hosted.py)
+    time: str = REAL
     #: device seconds per wall second (1: real time)
     scale: float = 1.0
     #: where the device keeps its non-volatile memory; None: in memory, gone at close
     state_dir: Path | None = None
 
 
-def parse_url(url: str) -> UrlOptions:
+@dataclass(frozen=True)
+class AttachOptions:
+    """A `stageemu://?attach=KEY` URL: a port on channel `channel` of the device served as KEY."""
+
+    key: str
+    channel: str = MAIN
+
+
+def parse_url(url: str) -> UrlOptions | AttachOptions:
     """The options of `url`; ValueError naming the problem and the expected form."""
     try:
         parts = urlsplit(url)
@@ -51,9 +70,23 @@ def parse_url(url: str) -> UrlOptions:
         if len(given) > 1:
             raise ValueError(f"{url!r}: parameter {key!r} given {len(given)} times")
         values[key] = given[0]
+    if "attach" in values:
+        if parts.netloc or set(values) - {"attach", "channel"}:
+            raise ValueError(f"{url!r}: attach= takes only channel= beside it; expected {FORM}")
+        if not values["attach"] or not values.get("channel", MAIN):
+            raise ValueError(f"{url!r}: attach= and channel= need a name")
+        return AttachOptions(values["attach"], values.get("channel", MAIN))
+    if "channel" in values:
+        raise ValueError(f"{url!r}: channel= goes with attach=; a new device's port is its main one")
+    time = values.get("time", REAL)
+    if time not in (REAL, VIRTUAL):
+        raise ValueError(f"{url!r}: time must be {REAL} or {VIRTUAL}, got {time!r}")
+    if time == VIRTUAL and "scale" in values:
+        raise ValueError(f"{url!r}: scale has no meaning in virtual time (it passes as the host waits)")
     return UrlOptions(
         profile=_profile(url, parts.netloc, values.get("profile")),
         timing=_timing(url, values.get("timing", REALISTIC)),
+        time=time,
         scale=_scale(url, values.get("scale", "1")),
         state_dir=_state_dir(url, values.get("state")),
     )

@@ -29,6 +29,7 @@ def _readme_block(caption: str) -> str:
 
 HOST_PROGRAM = _readme_block("The host program, `stage.py`:")
 USER_TESTS = _readme_block("Its tests, `test_stage.py`:")
+VIRTUAL_TESTS = _readme_block("Its test in virtual time, `test_stage_virtual.py`:")
 
 # each test notes its daemon's pid, so the outer test can check that none outlives the run
 LIFECYCLE_TESTS = """
@@ -126,3 +127,18 @@ def test_real_port_without_device_name_is_a_usage_error(pytester: pytest.Pyteste
     result = pytester.runpytest_subprocess("--stage-emu-port", "/dev/null", timeout=60)
     assert result.ret == pytest.ExitCode.USAGE_ERROR
     result.stderr.fnmatch_lines(["*--stage-emu-port needs --stage-emu-device*"])
+
+
+def test_the_virtual_time_example_runs_without_a_daemon(pytester: pytest.Pytester) -> None:
+    """The README's virtual-time test as a user runs it: a 10 s move, passed in device time."""
+    pytester.makepyfile(stage=HOST_PROGRAM, test_stage_virtual=VIRTUAL_TESTS)
+    result = pytester.runpytest_subprocess("-p", "no:cacheprovider", timeout=60)
+    result.assert_outcomes(passed=1)
+
+
+def test_the_virtual_time_example_is_skipped_on_a_real_port(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(stage=HOST_PROGRAM, test_stage_virtual=VIRTUAL_TESTS)
+    result = pytester.runpytest_subprocess(
+        "-p", "no:cacheprovider", "--stage-emu-port", "/dev/null", "--stage-emu-device", "ms2000", timeout=60
+    )
+    result.assert_outcomes(skipped=1)
