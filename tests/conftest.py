@@ -17,6 +17,13 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         "--aux-port",
         help="the real controller's auxiliary port (TTL REPORT frames); tests needing it skip without",
     )
+    group.addoption(
+        "--target",
+        choices=("virtual", "daemon"),
+        default="virtual",
+        help="where tests/conformance runs without --port: the emulator in process, in virtual time "
+        "(default), or a daemon's pseudo-terminals in real time",
+    )
 
 
 def pytest_configure(config: pytest.Config) -> None:

@@ -1,10 +1,14 @@
 """Conformance targets: the emulator (default) or a real controller (`--port PATH --device FAMILY`).
 
 Tests open the port with pyserial exactly as a host program would. `open_target(profile, overrides)`
-returns a `Target`; on the emulator each call gets a factory-fresh device (same daemon reused per
-profile/overrides/timing), on a real port the profile only supplies line settings and tests that ask
-for non-default profiles or overrides are skipped (mark tests that need the control channel
-`@pytest.mark.control`, exact timing `@pytest.mark.timing`). A `stageemu://` URL as `--port` is an
+returns a `Target`; on the emulator each call gets a factory-fresh device: by default one served in
+this process in virtual time (device time passes at once whenever the host waits, so every instant
+is exact and no test waits for the wall clock), with `--target daemon` one of a daemon's
+pseudo-terminals in real time (same daemon reused per profile/overrides/timing). A test's clock is
+`Target.monotonic()`: the device's in virtual time, the wall clock's otherwise. On a real port the
+profile only supplies line settings and tests that ask for non-default profiles or overrides are
+skipped (mark tests that need the control channel `@pytest.mark.control`, exact timing
+`@pytest.mark.timing`). A `stageemu://` URL as `--port` is an
 emulator in the test process, which has every profile: those tests run on it, with the URL's profile
 swapped. An `rfc2217://` URL opens with `Rfc2217Port`. A device's second port (the MS2000's TTL
 REPORT `aux`) opens with `Target.open_aux()`: served next to the main port on the emulator,
@@ -17,6 +21,7 @@ import contextlib
 import json
 import os
 import socket
+import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,10 +33,12 @@ import serial
 from serial import rfc2217
 
 import emulator.urlhandler  # noqa: F401  (registers stageemu:// URLs for --port)
-from emulator.control_client import ControlClient
+from emulator.control_client import ControlClient, ControlRequests
 from emulator.profile import Profile, load_profile
 from emulator.registry import channels_of
-from emulator.urlhandler.url import SCHEME
+from emulator.urlhandler.control import HostedControl
+from emulator.urlhandler.hosted import HostedDevice, serve
+from emulator.urlhandler.url import SCHEME, VIRTUAL, UrlOptions
 from tests.support.daemon import RunningDaemon, start_daemon
 
 
@@ -74,19 +81,30 @@ class Target:
     profile: Profile
     real: bool
     device: str | None = None
-    control: ControlClient | None = None
+    control: ControlRequests | None = None
     baud: int | None = None
     #: the auxiliary port (None: the device has none, or `--aux-port` was not given)
     aux_path: str | None = None
-    _ports: list[serial.Serial] = field(default_factory=list)
+    #: the device served in this process in virtual time (None: a daemon's or a real port)
+    hosted: HostedDevice | None = None
+    _ports: list[serial.SerialBase] = field(default_factory=list)
 
-    def open_aux(self, **overrides: Any) -> serial.Serial:
+    @property
+    def virtual(self) -> bool:
+        return self.hosted is not None
+
+    def monotonic(self) -> float:
+        """The test's clock in seconds: the device's in virtual time (the host's waits move it),
+        the wall clock's on a daemon or a real port."""
+        return time.monotonic() if self.hosted is None else self.hosted.now()
+
+    def open_aux(self, **overrides: Any) -> serial.SerialBase:
         """The auxiliary port, at the main port's settings (MS-5)."""
         if self.aux_path is None:
             pytest.skip("needs the auxiliary port (--aux-port on a real controller)")
         return self.open(path=self.aux_path, **overrides)
 
-    def open(self, path: str | None = None, **overrides: Any) -> serial.Serial:
+    def open(self, path: str | None = None, **overrides: Any) -> serial.SerialBase:
         """The port (default: the main one) opened with the profile's line settings, as a host
         program would."""
         line = self.profile.line
@@ -110,7 +128,7 @@ class Target:
         self._ports.append(port)
         return port
 
-    def ctl(self) -> ControlClient:
+    def ctl(self) -> ControlRequests:
         if self.control is None:
             pytest.skip("needs the emulator's control channel")
         return self.control
@@ -124,16 +142,21 @@ class Target:
     def close(self) -> None:
         for port in self._ports:
             port.close()
-        if self.control is not None:
+        if isinstance(self.control, ControlClient):
             self.control.close()  # the daemon serves a bounded number of control connections
+        if self.hosted is not None:
+            self.hosted.close()
 
 
 def carries_parity(config: pytest.Config) -> bool:
-    """Whether the data bits and parity a host sets reach the device through `--port`: not on the
-    emulator's pseudo-terminals (the pty driver clears PARENB, MP-4), nor through a raw TCP socket
-    (no line settings at all); on an RFC 2217 port, a `stageemu://` URL and a real port they do."""
+    """Whether the data bits and parity a host sets reach the device: not on the emulator's
+    pseudo-terminals (`--target daemon`, or a PTY as `--port`: the pty driver clears PARENB, MP-4),
+    nor through a raw TCP socket (no line settings at all); in virtual time (the device is served in
+    process: a `stageemu://` port), on an RFC 2217 port and a real port they do."""
     port = config.getoption("--port")
-    if not port or port.startswith("socket://"):
+    if not port:
+        return bool(config.getoption("--target") == "virtual")
+    if port.startswith("socket://"):
         return False
     return not os.path.realpath(port).startswith("/dev/pts/")
 
@@ -197,10 +220,27 @@ def profile_url(
         return None
     host, query = profile, [(key, value) for key, value in parse_qsl(parts.query) if key != "profile"]
     if overrides:
-        path = tmp_path_factory.mktemp("profile") / "profile.yaml"
-        path.write_text(json.dumps({"spec": 1, "extends": profile, **overrides}))
-        host, query = "", [("profile", str(path)), *query]
+        host, query = "", [("profile", profile_file(profile, overrides, tmp_path_factory)), *query]
     return f"{SCHEME}://{host}" + (f"?{urlencode(query)}" if query else "")
+
+
+def profile_file(profile: str, overrides: dict[str, Any], tmp_path_factory: pytest.TempPathFactory) -> str:
+    """A profile file extending `profile` with `overrides`, as a `stageemu://` URL or `serve` takes."""
+    path = tmp_path_factory.mktemp("profile") / "profile.yaml"
+    path.write_text(json.dumps({"spec": 1, "extends": profile, **overrides}))
+    return str(path)
+
+
+def virtual_target(
+    profile: str, overrides: dict[str, Any] | None, timing: str, tmp_path_factory: pytest.TempPathFactory
+) -> Target:
+    """A factory-fresh device served in this process in virtual time, with its control channel."""
+    loaded = load_profile(profile, overrides=overrides)
+    source = profile_file(profile, overrides, tmp_path_factory) if overrides else profile
+    hosted = serve(UrlOptions(profile=source, timing=timing, time=VIRTUAL))
+    aux = hosted.url("aux") if "aux" in hosted.channels else None
+    control = HostedControl(hosted, "dut")
+    return Target(hosted.url(), loaded.family, loaded, False, "dut", control, aux_path=aux, hosted=hosted)
 
 
 @pytest.fixture
@@ -225,6 +265,8 @@ def open_target(
             baud = request.config.getoption("--baud")
             aux = request.config.getoption("--aux-port")
             target = Target(path, family, loaded, True, baud=baud, aux_path=aux)
+        elif request.config.getoption("--target") == "virtual":
+            target = virtual_target(profile, overrides, timing, tmp_path_factory)
         else:
             daemon = daemon_pool.get(profile, overrides, timing)
             control = daemon.control()

@@ -2,6 +2,11 @@
 `stage-emu proxy --record`, saved with `stage-emu replay --save-test`) has its host side replayed on
 the target and must get the recorded replies, byte for byte and in time. On a real controller
 (`--port ... --device ...`) the sessions of its family whose profile is the family's own run.
+
+emulator/replay.py plays a session on the wall clock, with a thread reading the port: in virtual
+time that thread's reads would move device time ahead of the schedule. So in virtual time (the
+default target) a session replays on a device of the same profile in this process in real time
+(`stageemu://PROFILE`), as `stage-emu replay` does without `--port`.
 """
 
 from __future__ import annotations
@@ -11,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from emulator.replay import ReplayOptions, replay
+from emulator.replay import ReplayOptions, emulator_url, replay
 from emulator.session import load_session
 from tests.conformance.conftest import Target
 
@@ -21,9 +26,17 @@ SESSIONS = sorted(Path(__file__).parent.glob("*/sessions/*.jsonl"))
 TOLERANCE_S = 0.030
 
 
-@pytest.mark.parametrize("path", SESSIONS, ids=lambda path: f"{path.parents[1].name}-{path.stem}")
+def session_id(path: Path) -> str:
+    """`FAMILY-NAME`: tests/conformance/FAMILY/sessions/NAME.jsonl's test id."""
+    return f"{path.parents[1].name}-{path.stem}"
+
+
+@pytest.mark.smoke
+@pytest.mark.parametrize("path", SESSIONS, ids=session_id)
 def test_session_replays(path: Path, open_target: Callable[..., Target]) -> None:
     session = load_session(path)
-    target = open_target(session.header.profile)
-    result = replay(session, target.open(), ReplayOptions(TOLERANCE_S))
-    assert result.ok, "\n".join([*result.report(), result.summary(target.path)])
+    profile = session.header.profile
+    target = open_target(profile)
+    port = target.open(path=emulator_url(profile, "realistic")) if target.virtual else target.open()
+    result = replay(session, port, ReplayOptions(TOLERANCE_S))
+    assert result.ok, "\n".join([*result.report(), result.summary(str(port.port))])

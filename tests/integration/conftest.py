@@ -1,13 +1,17 @@
-"""The conformance suites over RFC 2217, run in the background of the session.
+"""The conformance suites' smoke samples in real time, run in the background of the session.
 
-Each family's whole suite (tests/conformance, as `pytest tests/conformance --port rfc2217://...
---device F` runs it) in hardware mode through a daemon's RFC 2217 port takes minutes of wall
-time (device time passes in real time there: TV-21 alone is a 62.65 s move) but seconds of CPU. So
-each starts as soon as collection ends, in its own pytest process against its own daemon
-(`serve --profile F --rfc2217 127.0.0.1:0`), and runs while the rest of the session does; the tests
-that take its outcome (fixture `rfc2217_suites`, test_network_ports.py) are moved to the end of the
-session. Nothing starts unless one of them was selected, nor when the session itself runs against a
-real port (`--port`).
+The session itself runs tests/conformance in virtual time (the device in process: seconds for
+both families). What virtual time cannot show is the same vectors end to end through the
+transports a host program meets, in real time: so each family's fixed smoke sample
+(`@pytest.mark.smoke`: framing, pacing, character timing, errors, a control-channel use, and the
+family's recorded sessions) also runs over a daemon's RFC 2217 port in hardware mode
+(`pytest tests/conformance/F -m smoke --port rfc2217://... --device F`, against
+`serve --profile F --rfc2217 127.0.0.1:0`) and over the pseudo-terminals of a daemon pool
+(`pytest tests/conformance/F -m smoke --target daemon`). Each run takes some seconds of wall time
+(device time passes in real time) but little CPU, so each starts early, in its own pytest process,
+and runs while the rest of the session does (fixture `smoke_runs`, test_network_ports.py, says how
+in one process and under pytest-xdist). Nothing starts
+unless one of them was selected, nor when the session itself runs against a real port (`--port`).
 """
 
 from __future__ import annotations
@@ -23,19 +27,24 @@ from pathlib import Path
 
 import pytest
 
+from tests.conformance.test_sessions import session_id
 from tests.support.daemon import ROOT, RunningDaemon, start_daemon
 
-FIXTURE = "rfc2217_suites"
-#: a suite that has not finished this long after it started has hung
-SUITE_TIMEOUT_S = 900.0
+FIXTURE = "smoke_runs"
+#: the transports a smoke sample runs over: a daemon's RFC 2217 port, a daemon pool's PTYs
+RFC2217, PTY = "rfc2217", "pty"
+#: a run that has not finished this long after it started has hung
+RUN_TIMEOUT_S = 300.0
 
 
 @dataclass
-class SuiteRun:
-    """One family's suite: its daemon, the pytest process, and what that process writes."""
+class SmokeRun:
+    """One family's smoke sample over one transport: the pytest process, what it writes, and the
+    daemon whose RFC 2217 port it talks to (None over PTYs: that run starts its own daemons)."""
 
     family: str
-    daemon: RunningDaemon
+    transport: str
+    daemon: RunningDaemon | None
     proc: subprocess.Popen[bytes]
     output: Path
     junit: Path
@@ -46,55 +55,62 @@ class SuiteRun:
     def wait(self) -> int:
         """The pytest process's exit status once it has exited; then the daemon is stopped."""
         if self.seconds is None:
-            left = self.started + SUITE_TIMEOUT_S - time.monotonic()
+            left = self.started + RUN_TIMEOUT_S - time.monotonic()
             try:
                 self.proc.wait(max(left, 0.0))
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait()
             self.seconds = time.monotonic() - self.started
-            self.daemon.stop()
+            if self.daemon is not None:
+                self.daemon.stop()
         return self.proc.returncode
 
     def report(self) -> str:
-        """The end of the suite's output and of the daemon's log, for a failure message."""
-        return f"{self.output.read_text()[-6000:]}\n--- daemon log ---\n{self.daemon.stderr()[-3000:]}"
+        """The end of the run's output and of the daemon's log, for a failure message."""
+        log = "" if self.daemon is None else f"\n--- daemon log ---\n{self.daemon.stderr()[-3000:]}"
+        return f"{self.output.read_text()[-6000:]}{log}"
 
     def stop(self) -> None:
         if self.proc.poll() is None:
             self.proc.kill()
         self.proc.wait()
-        self.daemon.stop()
+        if self.daemon is not None:
+            self.daemon.stop()
 
 
-class Rfc2217Suites:
-    """The families' suite runs of this session, in a scratch directory of their own."""
+class SmokeRuns:
+    """The smoke runs of this session, in a scratch directory of their own."""
 
     def __init__(self) -> None:
-        self.workdir = Path(tempfile.mkdtemp(prefix="stage-emu-rfc2217-"))
-        self.runs: dict[str, SuiteRun] = {}
-        #: why a family's run did not start (reported by its test, not as an error of the session)
-        self.failed: dict[str, str] = {}
+        self.workdir = Path(tempfile.mkdtemp(prefix="stage-emu-smoke-"))
+        self.runs: dict[tuple[str, str], SmokeRun] = {}
+        #: why a run did not start (reported by its test, not as an error of the session)
+        self.failed: dict[tuple[str, str], str] = {}
 
-    def start(self, family: str) -> None:
-        try:
-            daemon = start_daemon(
-                self.workdir / family / "daemon",
-                ["--profile", family, "--rfc2217", "127.0.0.1:0"],
-                expect_ports=1,
-            )
-        except (OSError, RuntimeError) as exc:  # TimeoutError is an OSError
-            self.failed[family] = f"the daemon did not start: {exc}"
-            return
-        self.runs[family] = self._run_suite(family, daemon)
+    def start(self, family: str, transport: str) -> None:
+        workdir = self.workdir / f"{family}-{transport}"
+        args = ["--target", "daemon"]
+        daemon = None
+        if transport == RFC2217:
+            try:
+                daemon = start_daemon(
+                    workdir / "daemon", ["--profile", family, "--rfc2217", "127.0.0.1:0"], expect_ports=1
+                )
+            except (OSError, RuntimeError) as exc:  # TimeoutError is an OSError
+                self.failed[family, transport] = f"the daemon did not start: {exc}"
+                return
+            args = ["--port", daemon.port(family), "--device", family]
+        self.runs[family, transport] = self._run(family, transport, workdir, daemon, args)
 
-    def _run_suite(self, family: str, daemon: RunningDaemon) -> SuiteRun:
-        workdir = self.workdir / family
-        url = daemon.port(family)
+    def _run(
+        self, family: str, transport: str, workdir: Path, daemon: RunningDaemon | None, args: list[str]
+    ) -> SmokeRun:
+        workdir.mkdir(parents=True, exist_ok=True)
         output, junit = workdir / "pytest.out", workdir / "junit.xml"
         command = [
             *(sys.executable, "-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider"),
-            *("tests/conformance", "--port", url, "--device", family),
+            *(f"tests/conformance/{family}", *sessions_of(family), "-m", "smoke", *args),
             *("--basetemp", str(workdir / "tmp"), "--junitxml", str(junit)),
             *("-W", "ignore::DeprecationWarning"),  # pyserial's RFC 2217 client calls Thread.setDaemon
         ]
@@ -106,7 +122,7 @@ class Rfc2217Suites:
                 stdout=sink,
                 stderr=subprocess.STDOUT,
             )
-        return SuiteRun(family, daemon, proc, output, junit, time.monotonic())
+        return SmokeRun(family, transport, daemon, proc, output, junit, time.monotonic())
 
     def stop(self) -> None:
         for run in self.runs.values():
@@ -114,38 +130,66 @@ class Rfc2217Suites:
         shutil.rmtree(self.workdir, ignore_errors=True)
 
 
-_suites: Rfc2217Suites | None = None
+def sessions_of(family: str) -> list[str]:
+    """The test ids of the family's recorded sessions (tests/conformance/test_sessions.py)."""
+    sessions = sorted((ROOT / "tests" / "conformance" / family / "sessions").glob("*.jsonl"))
+    return [
+        f"tests/conformance/test_sessions.py::test_session_replays[{session_id(path)}]" for path in sessions
+    ]
 
 
-def _family(item: pytest.Item) -> str | None:
-    """The family whose suite run `item` takes the outcome of (None: it takes none)."""
+_runs: SmokeRuns | None = None
+
+
+def _run_of(item: pytest.Item) -> tuple[str, str] | None:
+    """The (family, transport) whose smoke run `item` takes the outcome of (None: it takes none)."""
     if isinstance(item, pytest.Function) and FIXTURE in item.fixturenames:
-        return str(item.callspec.params["family"])
+        return str(item.callspec.params["family"]), str(item.callspec.params["transport"])
     return None
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    items.sort(key=lambda item: _family(item) is not None)  # stable: those last, the rest in order
+def _under_xdist(config: pytest.Config) -> bool:
+    """Whether this process is a pytest-xdist worker (`make test` runs the session on every CPU)."""
+    return hasattr(config, "workerinput")
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    # In one process the runs start when collection ends and their tests go last, so the session's
+    # own tests overlap them. Under xdist every worker collects everything and none can tell which
+    # will get those tests: they form one group (`xdist_group`), go first, and start the runs in
+    # the worker that takes the group, while the other workers go on with the rest.
+    first = _under_xdist(config)
+    items.sort(key=lambda item: (_run_of(item) is not None) != first)  # stable: the rest in order
+    for item in items:
+        if _run_of(item) is not None:
+            item.add_marker(pytest.mark.xdist_group(FIXTURE))
 
 
 def pytest_collection_finish(session: pytest.Session) -> None:
-    global _suites
+    if not _under_xdist(session.config):
+        _start_wanted(session)
+
+
+def _start_wanted(session: pytest.Session) -> None:
+    global _runs
     if session.config.getoption("--port") or session.config.getoption("collectonly"):
         return
-    families = sorted({family for item in session.items if (family := _family(item)) is not None})
-    if families:
-        _suites = Rfc2217Suites()
-        for family in families:
-            _suites.start(family)
+    wanted = sorted({run for item in session.items if (run := _run_of(item)) is not None})
+    if wanted:
+        _runs = SmokeRuns()
+        for family, transport in wanted:
+            _runs.start(family, transport)
 
 
 def pytest_sessionfinish() -> None:
-    if _suites is not None:
-        _suites.stop()
+    if _runs is not None:
+        _runs.stop()
 
 
 @pytest.fixture(scope="session")
-def rfc2217_suites() -> Rfc2217Suites:
-    """The suite runs started when collection ended."""
-    assert _suites is not None, "no suite was started: are the tests parametrized by `family`?"
-    return _suites
+def smoke_runs(request: pytest.FixtureRequest) -> SmokeRuns:
+    """The smoke runs, started when collection ended (or, under xdist, by their first test)."""
+    if _runs is None and _under_xdist(request.config):
+        _start_wanted(request.session)
+    assert _runs is not None, "no smoke run was started: are the tests parametrized by `family`?"
+    return _runs

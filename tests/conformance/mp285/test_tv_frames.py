@@ -12,7 +12,6 @@ from tests.conformance.mp285.wire import (
     ZEROS,
     Host,
     OpenTarget,
-    assert_at,
     connect,
     hx,
     position,
@@ -41,7 +40,7 @@ def test_tv_007_payload_bytes_equal_to_cr(open_target: OpenTarget) -> None:
 
 def assert_move_reply_time(host: Host, frame: bytes, seconds: float) -> None:
     done = host.send(frame)
-    assert_at(host.expect(CR, within=seconds), done + seconds + CHAR)
+    host.expect_at(CR, done + seconds + CHAR, within=seconds)
 
 
 @pytest.mark.timing
@@ -63,9 +62,11 @@ def test_tv_008_move_reply_time(open_target: OpenTarget) -> None:
     assert_move_reply_time(connect(open_target), CTRL_C_PAYLOAD, CTRL_C_PAYLOAD_TIME)
 
 
-def test_tv_009_two_commands_in_one_write(open_target: OpenTarget) -> None:
-    """TV-9 (MP-12): `73 0D 63 0D` in one write: the 33 status bytes, then the 13 position bytes."""
-    connect(open_target).exchange(hx("73 0D 63 0D"), DUMP_A + ZEROS + CR)
+@pytest.mark.parametrize("timing", [pytest.param("realistic", marks=pytest.mark.smoke), "fast"])
+def test_tv_009_two_commands_in_one_write(open_target: OpenTarget, timing: str) -> None:
+    """TV-9 (MP-12): `73 0D 63 0D` in one write: the 33 status bytes, then the 13 position bytes,
+    whether the line is paced or not (`timing: fast`)."""
+    connect(open_target, timing=timing).exchange(hx("73 0D 63 0D"), DUMP_A + ZEROS + CR)
 
 
 def test_tv_010_no_inter_byte_timeout(open_target: OpenTarget) -> None:
@@ -79,7 +80,11 @@ def test_tv_010_no_inter_byte_timeout(open_target: OpenTarget) -> None:
 
 @pytest.mark.parametrize(
     ("frame", "reply"),
-    [("73 0D 0A", DUMP_A + CR), ("63 0D 0A", ZEROS + CR + CR), ("61 0D 0A", CR + CR)],
+    [
+        ("73 0D 0A", DUMP_A + CR),
+        pytest.param("63 0D 0A", ZEROS + CR + CR, marks=pytest.mark.smoke),
+        ("61 0D 0A", CR + CR),
+    ],
     ids=["s", "c", "a"],
 )
 def test_tv_011_cr_lf_host_gets_one_more_cr(open_target: OpenTarget, frame: str, reply: bytes) -> None:
@@ -110,23 +115,28 @@ def test_tv_011_lone_terminators(open_target: OpenTarget, frame: str, reply: str
     host.quiet(0.05)
 
 
-@pytest.mark.parametrize("frame", ["43 0D", "52 0D", "76 0D", "78 79 7A 0D", "00 0D"])
+@pytest.mark.parametrize(
+    "frame", [pytest.param("43 0D", marks=pytest.mark.smoke), "52 0D", "76 0D", "78 79 7A 0D", "00 0D"]
+)
 def test_tv_012_unknown_commands(open_target: OpenTarget, frame: str) -> None:
     """TV-12 (MP-21, MP-19, MP-14, MP-59): another family's `C`, the interposer's `R`, lower-case
-    `v`, several bad bytes, a NUL: discarded through the CR, then `34 0D` once."""
+    `v`, several bad bytes, a NUL: discarded through the CR, then `34 0D` once, as the CR arrives."""
     host = connect(open_target)
-    host.exchange(hx(frame), hx("34 0D"))
+    done = host.send(hx(frame))
+    host.expect_at(hx("34 0D"), done + 2 * CHAR)
     host.quiet(0.05)
 
 
 def test_tv_013_bad_terminator(open_target: OpenTarget) -> None:
-    """TV-13 (MP-22): `63 63 0D` gives `34 0D`. After `63 0A` (a Unix newline) nothing comes; the
-    next `63 0D` is swallowed by the discarding, and its CR releases `34 0D`."""
+    """TV-13 (MP-22): `63 63 0D` gives `34 0D` as its CR arrives. After `63 0A` (a Unix newline)
+    nothing comes; the next `63 0D` is swallowed by the discarding, and its CR releases `34 0D`."""
     host = connect(open_target)
-    host.exchange(hx("63 63 0D"), hx("34 0D"))
+    done = host.send(hx("63 63 0D"))
+    host.expect_at(hx("34 0D"), done + 2 * CHAR)
     host.send(hx("63 0A"))
     host.quiet(0.1)
-    host.exchange(GET_POSITION, hx("34 0D"))
+    done = host.send(GET_POSITION)
+    host.expect_at(hx("34 0D"), done + 2 * CHAR)
     host.exchange(GET_POSITION, ZEROS + CR)
 
 
@@ -142,12 +152,13 @@ def test_tv_014_buffer_overrun(open_target: OpenTarget) -> None:
     host.exchange(GET_POSITION, ZEROS + CR)
 
 
+@pytest.mark.smoke
 @pytest.mark.timing
 def test_tv_014_overrun_reply_time(open_target: OpenTarget) -> None:
     """TV-14 (MP-23): the `32 0D` is sent as the 65th byte is processed."""
     host = connect(open_target)
     done = host.send(hx("71") + b"A" * 64)
-    assert_at(host.expect(hx("32 0D")), done + 2 * CHAR)
+    host.expect_at(hx("32 0D"), done + 2 * CHAR)
 
 
 def test_tv_015_eight_byte_longs(open_target: OpenTarget) -> None:
@@ -158,18 +169,21 @@ def test_tv_015_eight_byte_longs(open_target: OpenTarget) -> None:
     host = connect(open_target)
     host.send(frame[:-1])
     host.quiet(0.05)
-    host.send(frame[-1:])
-    assert host.read(1) == b"4"
-    assert host.read(1) == CR
+    done = host.send(frame[-1:])
+    host.expect_at(b"4", done + CHAR)
+    host.expect_at(CR, done + 2 * CHAR)
     host.exchange(GET_POSITION, ZEROS + CR)
 
 
 def test_tv_016_eight_byte_longs_with_a_cr_byte(open_target: OpenTarget) -> None:
     """TV-16 (MP-26): the same host with Z = 13: discarding ends at byte 17 (Z's `0D`), `34 0D`;
-    byte 18 (`00`) is an unknown command, discarded through byte 25: `34 0D` again. No motion."""
+    byte 18 (`00`) is an unknown command, discarded through byte 25: `34 0D` again, each as the
+    byte that ends it arrives. No motion."""
     frame = hx("6D FA 00 00 00 00 00 00 00 F4 01 00 00 00 00 00 00 0D 00 00 00 00 00 00 00 0D")
     host = connect(open_target)
-    host.exchange(frame, hx("34 0D 34 0D"))
+    done = host.send(frame)
+    host.expect_at(hx("34 0D"), done - 8 * CHAR + 2 * CHAR)
+    host.expect_at(hx("34 0D"), done + 2 * CHAR)
     host.quiet(0.05)
     host.exchange(GET_POSITION, ZEROS + CR)
 

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-import time
-from typing import TYPE_CHECKING
+from typing import Any
 
 import pytest
 import serial
 
 from protocols.mp285 import StatusBlock, Velocity
 from tests.conformance.conftest import NO_PARITY, carries_parity
+from tests.conformance.mp285.conftest import LogOf
 from tests.conformance.mp285.wire import (
     CHAR,
     CR,
@@ -19,19 +19,15 @@ from tests.conformance.mp285.wire import (
     GET_STATUS,
     LONG_X,
     ZEROS,
-    DaemonLog,
     Host,
     OpenTarget,
-    assert_at,
     connect,
     hx,
     show,
 )
 
-if TYPE_CHECKING:
-    from tests.conformance.conftest import DaemonPool
 
-
+@pytest.mark.smoke
 def test_tv_001_status_dump_a(open_target: OpenTarget) -> None:
     """TV-1 (MP-60, MP-65, MP-11): `73 0D` gives dump A of a real MP-285: VERSION 340, STEP_DIV and
     STEP_MUL 25/4, XSPEED 200 µm/s at low resolution, words least significant byte first."""
@@ -44,16 +40,18 @@ def test_tv_001_status_dump_a(open_target: OpenTarget) -> None:
     assert status.velocity == Velocity(200, high=False)
 
 
+@pytest.mark.smoke
 @pytest.mark.timing
 def test_tv_001_status_reply_is_paced(open_target: OpenTarget) -> None:
-    """TV-1 (MP-3): one character per character time: the first byte completes one character time
-    after the `s` frame, the 33rd 34.4 ms after the first byte started."""
+    """TV-1 (MP-3, MP-11): the dump leaves as the `s` frame's CR is processed, one character per
+    character time: the first byte completes one character time after the frame, the 33rd 34.4 ms
+    after the first byte started."""
     host = connect(open_target)
     done = host.send(GET_STATUS)
     host.read(1)
-    assert_at(time.monotonic(), done + CHAR)
+    host.assert_at(host.now(), done + CHAR)
     host.read(32)
-    assert_at(time.monotonic(), done + 33 * CHAR)
+    host.assert_at(host.now(), done + 33 * CHAR)
 
 
 @pytest.mark.parametrize(
@@ -102,37 +100,50 @@ def test_tv_003_line_mismatch_ignore_passes_bytes(open_target: OpenTarget) -> No
 
 @pytest.mark.control
 @pytest.mark.parametrize(
-    ("settings", "line"),
+    ("settings", "overrides", "line"),
     [
-        (
+        pytest.param(
             {"baudrate": 19200},
-            "dut/main: host uses 19200 8N1, device expects 9600 8N1; "
+            None,
+            "main: host uses 19200 8N1, device expects 9600 8N1; "
             "traffic will be garbled (line_mismatch=garble)",
+            marks=pytest.mark.smoke,
         ),
         (
             {"stopbits": serial.STOPBITS_TWO},
-            "dut/main: host uses 9600 8N2, device expects 9600 8N1; "
+            None,
+            "main: host uses 9600 8N2, device expects 9600 8N1; "
             "only the stop bits differ, which corrupts nothing (line_mismatch=garble)",
         ),
+        (
+            {"baudrate": 19200},
+            {"knobs": {"line_mismatch": "ignore"}},
+            "main: host uses 19200 8N1, device expects 9600 8N1; "
+            "traffic passes unchanged (line_mismatch=ignore)",
+        ),
     ],
-    ids=["19200", "8N2"],
+    ids=["19200", "8N2", "ignore"],
 )
 def test_tv_003_mismatch_is_logged_once(
-    open_target: OpenTarget, daemon_pool: DaemonPool, settings: dict[str, object], line: str
+    open_target: OpenTarget,
+    log_of: LogOf,
+    settings: dict[str, Any],
+    overrides: dict[str, Any] | None,
+    line: str,
 ) -> None:
     """TV-3 (MP-4, MP-5): one warning naming device, port, both settings and the knob in force, once
     a byte crosses the line; the traffic that follows logs nothing more."""
-    log = DaemonLog(daemon_pool.get("mp285", None, "realistic"))
-    log.drain()
-    host = connect(open_target, **settings)
+    host = connect(open_target, overrides=overrides, **settings)
+    log = log_of(host, overrides)
     host.send(GET_POSITION)
-    assert log.wait_line("host uses") == f"stage-emu: {line}"
+    assert log.wait_line("host uses") == line
     host.send(GET_POSITION)
     host.port.timeout = 0.1
     host.port.read(13)  # the reply, or nothing on a garbled line: only the log matters here
     assert not [entry for entry in log.drain() if "host uses" in entry]
 
 
+@pytest.mark.smoke
 @pytest.mark.parametrize("frame", ["63 0D", "7A 63 0D"])
 def test_tv_004_parity_host_gets_a_frame_error(
     open_target: OpenTarget, request: pytest.FixtureRequest, frame: str
@@ -147,36 +158,61 @@ def test_tv_004_parity_host_gets_a_frame_error(
     host.exchange(hx(frame), hx("00 C3"))
 
 
-def start_tv05_move(open_target: OpenTarget, rtscts: bool) -> Host:
-    """`mp285a` after `56 C8 00 0D`: the TV-31 move, 1.0 s into it. Which bytes are lost does not
-    depend on the exact instant, so device time runs 10×."""
-    host = connect(open_target, "mp285a", scale=10, rtscts=rtscts)
+def usb_host(open_target: OpenTarget, rtscts: bool) -> Host:
+    """An `mp285a` host; on a daemon device time runs 10× (`Host.after` scales the instants)."""
+    return connect(open_target, "mp285a", scale=10, rtscts=rtscts)
+
+
+def start_tv05_move(host: Host) -> float:
+    """`56 C8 00 0D`, then the TV-31 move; the instant the device had its frame."""
     host.exchange(hx("56 C8 00 0D"), CR)
-    host.send(LONG_X)
-    host.quiet(1.0)
-    return host
+    return host.send(LONG_X)
+
+
+def interrupt_at_one_second(host: Host, moved: float, frame: bytes) -> None:
+    """Write `frame` so that its first byte (the ^C) is the device's 1.000 s into the move."""
+    host.quiet_until(host.after(moved, 1.0 - CHAR))
+    host.send(frame)
 
 
 @pytest.mark.control
-@pytest.mark.parametrize(("interrupt", "replies"), [("03 63 0D", "3D 0D 30 0D"), ("03", "3D 0D")])
+@pytest.mark.parametrize(
+    ("interrupt", "tail"), [("03 63 0D", "30 0D"), ("03", "")], ids=["ctrl-c-and-query", "ctrl-c"]
+)
 def test_tv_005_usb_without_rtscts_loses_bytes_while_busy(
-    open_target: OpenTarget, interrupt: str, replies: str
+    open_target: OpenTarget, log_of: LogOf, interrupt: str, tail: str
 ) -> None:
-    """TV-5 (MP-7, MP-2): a USB host without RTS/CTS interrupts the move with `03 63 0D`: `3D` (the
-    ^C is the kept byte), `63 0D` are lost, the move's `0D`, then `30 0D`. A lone ^C works
-    normally. The device is idle again afterwards."""
-    host = start_tv05_move(open_target, rtscts=False)
-    host.exchange(hx(interrupt), hx(replies))
+    """TV-5 (MP-7, MP-2, MP-5): a USB host without RTS/CTS interrupts the move at 1.000 s with
+    `03 63 0D`: `3D` at once (the ^C is the kept byte), `63 0D` are lost, the move's `0D` at
+    1.150 s, then `30 0D` right behind it. A lone ^C works normally. The device is idle again
+    afterwards, and its warning says bytes sent while it is busy are lost."""
+    host = usb_host(open_target, rtscts=False)
+    log = log_of(host, profile="mp285a")
+    moved = start_tv05_move(host)
+    interrupt_at_one_second(host, moved, hx(interrupt))
+    host.expect_at(hx("3D"), host.after(moved, 1.0 + CHAR))
+    host.expect_at(CR, host.after(moved, 1.15 + CHAR))
+    if tail:
+        host.expect_at(hx(tail), host.after(moved, 1.15 + 3 * CHAR))
     assert len(host.position()) == 13
     host.quiet(0.1)
+    assert "bytes sent while the device is busy are lost" in log.wait_line("host uses")
 
 
 @pytest.mark.control
 def test_tv_005_with_rtscts_nothing_is_lost(open_target: OpenTarget) -> None:
-    """TV-5 (MP-7): with RTS/CTS the same bytes behave as TV-32: `3D`, the position, `0D`."""
-    host = start_tv05_move(open_target, rtscts=True)
-    host.exchange(hx("03 63 0D"), hx("3D"))
+    """TV-5 (MP-7): with RTS/CTS the same bytes behave as TV-32: `3D` at 1.000 s, the halted position
+    as the CR arrives, `0D` at 1.150 s."""
+    host = usb_host(open_target, rtscts=True)
+    moved = start_tv05_move(host)
+    interrupt_at_one_second(host, moved, hx("03 63 0D"))
+    host.expect_at(hx("3D"), host.after(moved, 1.0 + CHAR))
     data = host.read(13)
-    assert 0 < int.from_bytes(data[:4], "little", signed=True) < 25_000, show(data)
+    host.assert_at(host.now(), host.after(moved, 1.0 + 15 * CHAR))
+    x = int.from_bytes(data[:4], "little", signed=True)
+    if host.target.virtual:
+        assert x == 5000, show(data)  # 1.000 s at 5000 µsteps/s
+    else:
+        assert 0 < x < 25_000, show(data)  # where the host's timing let the ^C find it
     assert data[4:] == ZEROS[4:] + CR, show(data)
-    host.expect(CR)
+    host.expect_at(CR, host.after(moved, 1.15 + CHAR))

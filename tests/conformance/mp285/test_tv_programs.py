@@ -17,7 +17,7 @@ from tests.conformance.mp285.wire import (
     X_250,
     ZEROS,
     OpenTarget,
-    assert_at,
+    assert_halted,
     begin,
     connect,
     expect_at,
@@ -36,7 +36,7 @@ PAUSED_AT = hx("FA 00 00 00 00 00 00 00 06 FF FF FF 0D")
 
 def test_tv_038_reset_answers_nothing_and_restores_defaults(open_target: OpenTarget) -> None:
     """TV-38 (MP-15, MP-55, MP-57): after `V` 777 µm/s high and `b`, `72 0D` answers nothing for a
-    second (device time runs 5× on the emulator); then the power-on `V` word is back (XSPEED
+    second (on a daemon device time runs 5×); then the power-on `V` word is back (XSPEED
     `C8 00`, FLAGS_2 `78`) and moves are absolute again (the same `m` twice stays at X = 250)."""
     host = connect(open_target, scale=5)
     host.exchange(hx("56 09 83 0D"), CR)
@@ -54,7 +54,7 @@ def test_tv_038_reset_answers_nothing_and_restores_defaults(open_target: OpenTar
 @pytest.mark.timing
 @pytest.mark.parametrize(
     ("overrides", "first"),
-    [(None, b""), ({"knobs": {"reset_emits_nul": True}}, b"\x00")],
+    [pytest.param(None, b"", marks=pytest.mark.smoke), ({"knobs": {"reset_emits_nul": True}}, b"\x00")],
     ids=["default", "nul"],
 )
 def test_tv_038_reset_deaf_time(
@@ -66,7 +66,7 @@ def test_tv_038_reset_deaf_time(
     host = connect(open_target, overrides=overrides)
     done = host.send(RESET)
     if first:
-        assert_at(host.expect(first), done + CHAR)
+        host.expect_at(first, done + CHAR)
     host.quiet_until(done + 0.10 - 2 * CHAR)
     host.send(GET_POSITION)
     host.quiet_until(done + 0.30 - 2 * CHAR)
@@ -90,6 +90,23 @@ def test_tv_039_reset_during_a_move(open_target: OpenTarget) -> None:
     clock.past(1.35)
     assert target.get("state") == "IDLE"
     host.exchange(GET_POSITION, position(5000))
+
+
+def test_tv_039_reset_during_a_move_on_the_host_clock(open_target: OpenTarget) -> None:
+    """TV-39 (MP-57, MP-56): `72 0D` reaching the device 1.000 s into the TV-31 move: the move's
+    `0D` at 1.150 s; a `63 0D` at 1.25 s is lost (deaf until 1.350 s), one at 1.45 s answered with
+    where the reset halted the axes (both 0.1 s from the end of the deaf time, far beyond the timing
+    slack)."""
+    host = connect(open_target)
+    moved = host.send(LONG_X)
+    host.quiet_until(moved + 1.0 - CHAR)
+    host.send(RESET)  # its first byte halts the move
+    host.expect_at(CR, moved + 1.15 + CHAR)
+    host.quiet_until(moved + 1.25 - 2 * CHAR)
+    host.send(GET_POSITION)
+    host.quiet_until(moved + 1.45 - 2 * CHAR)
+    assert_halted(host, host.position(), 1.0)
+    host.quiet(0.05)
 
 
 @pytest.mark.parametrize(
@@ -128,6 +145,7 @@ def test_tv_041_program_round_trip(
     (`D0 07 00 00`) and a pause; `u` gives them back byte for byte; `k` answers at the pause; `e`
     answers at once (the pause was last), twice; `k` again moves by the vector once more, or, with
     `program_vectors: follow_mode`, to it (already there)."""
+    assert Download(1, (Vector.move(250, 0, -250), Vector.pause())).encode() == PROGRAM_1
     host = connect(open_target, overrides=overrides)
     host.exchange(PROGRAM_1, CR)
     host.exchange(hx("75 01 0D"), UPLOAD_1)
@@ -153,19 +171,25 @@ def test_tv_041_program_reply_times(
     host = connect(open_target, overrides=overrides)
     host.exchange(PROGRAM_1, CR)
     done = host.send(hx("6B 01 0D"))
-    assert_at(host.expect(CR, within=0.2), done + 0.200 + CHAR)
+    host.expect_at(CR, done + 0.200 + CHAR, within=0.2)
     done = host.send(hx("65 0D"))
-    assert_at(host.expect(CR), done + CHAR)
+    host.expect_at(CR, done + CHAR)
     done = host.send(hx("6B 01 0D"))
-    assert_at(host.expect(CR, within=0.2), done + again + CHAR)
+    host.expect_at(CR, done + again + CHAR, within=0.2)
 
 
-@pytest.mark.parametrize("frame", ["6B 00 0D", "6B 0B 0D", "75 0B 0D", "64 01 00 0D"])
+@pytest.mark.parametrize(
+    "frame", [pytest.param("6B 00 0D", marks=pytest.mark.smoke), "6B 0B 0D", "75 0B 0D", "64 01 00 0D"]
+)
 def test_tv_042_bad_program_frames(open_target: OpenTarget, frame: str) -> None:
-    """TV-42 (MP-67, MP-72): `k`/`u` of program 0 or 11, and a `d` of 0 vectors: `34 0D`."""
+    """TV-42 (MP-67, MP-72): `k`/`u` of program 0 or 11, and a `d` of 0 vectors: `34 0D` as the CR
+    arrives, and nothing is stored: program 1 keeps what it held."""
     host = connect(open_target)
-    host.exchange(hx(frame), hx("34 0D"))
+    host.exchange(PROGRAM_1, CR)
+    done = host.send(hx(frame))
+    host.expect_at(hx("34 0D"), done + 2 * CHAR)
     host.quiet(0.05)
+    host.exchange(hx("75 01 0D"), UPLOAD_1)
 
 
 def test_tv_042_download_checked_after_the_frame(open_target: OpenTarget) -> None:

@@ -1,25 +1,32 @@
 """Helpers for the MP-285 conformance tests: the host's side of the port, and device time on the
 emulator.
 
-Three ways a test meets time:
+Every instant a test measures is on the test's clock, `Target.monotonic()`: device time when the
+device is served in the test process in virtual time (the default target), the wall clock on a
+daemon's port or a real one. Three ways a test meets time:
 
-- `Host` on a real clock (the default): replies are awaited with serial timeouts. Timing
-  assertions (`assert_at`, tests marked `timing`) compare the host's monotonic clock with the instant
-  the device had the last byte of the host's frame, estimated as the start of the write plus its
-  wire time at the host's baud (10 bits per character at 8N1 ÷ baud).
-- `fast_forward`: on the emulator, device time runs `scale` times faster than wall time, so long
-  moves and silences cost little; a no-op on a real port. Only for tests whose assertions do not
-  depend on the host's timing precision (bytes, order, positions with a tolerance scaled alike).
+- `Host` on the test's clock: replies are awaited with serial timeouts. Timing assertions
+  (`Host.assert_at`, tests marked `timing`) compare the instant the last byte of a reply was read
+  with the instant the device had the last byte of the host's frame, estimated as the start of the
+  write plus its wire time at the host's baud (10 bits per character at 8N1 ÷ baud). In virtual time
+  both are exact, so they must agree to the microsecond; on a daemon's port within the scheduling
+  slack of two processes; a real controller's own latency is not specified, so there they are
+  not checked.
+- `fast_forward`: on a daemon, device time runs `scale` times faster than wall time, so long moves
+  and silences cost little; in virtual time they cost nothing anyway, and on a real port nothing
+  changes. Only for tests whose assertions do not depend on the host's timing precision (bytes,
+  order, positions with a tolerance scaled alike).
 - `DeviceClock` (tests marked `control`, targets opened with `timing="fast"`): the emulator's clock
   is paused and stepped by the test (`to(t)` for actions at `t`, `past(t)` to see what is due), host
-  bytes are processed the instant the daemon reads them and replies leave at once, so every exchange
+  bytes are processed the instant the device reads them and replies leave at once, so every exchange
   happens at an exact device instant and positions after an interrupt come out byte for byte.
-  Before stepping, the test waits until the daemon has the bytes it wrote (a reply arrived, or an
-  observable changed): `wait_for`.
+  Before stepping on a daemon, the test waits until it has the bytes it wrote (a reply arrived, or
+  an observable changed): `wait_for`.
 """
 
 from __future__ import annotations
 
+import logging
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -27,6 +34,7 @@ from typing import TYPE_CHECKING, Any
 
 import serial
 
+from emulator.urlhandler.url import SCHEME
 from protocols.mp285 import MAX_SPEED_HIGH_UM_S, Move, SetVelocity, unpack_xyz
 
 if TYPE_CHECKING:
@@ -36,13 +44,15 @@ if TYPE_CHECKING:
 CR = b"\r"
 ZEROS = bytes(12)
 CHAR = 10 / 9600  # one 8N1 character at 9600 baud (MP-3)
-#: how late a reply may be on the host's clock: the daemon's and the host's scheduling on a loaded
+#: how late a reply may be on a daemon's port: the daemon's and the host's scheduling on a loaded
 #: 2-core machine (a few ms typically, tens at worst), plus reading the reply through the PTY
 SLACK = 0.030
 #: how early: never by design (the device cannot act before the host's bytes have crossed the
 #: wire); 1 ms covers rounding in the device's pacing and the two processes reading one clock
 EARLY = 0.001
-#: extra wall time a read may wait beyond the device time it expects, so a slow run fails by its
+#: in virtual time every instant is exact: only float sums of device seconds may differ
+EXACT = 1e-6
+#: extra time a read may wait beyond the device time it expects, so a slow run fails by its
 #: assertion rather than by a too short timeout
 READ_MARGIN = 0.5
 #: `DeviceClock.past` steps 1 µs past an instant so that what is due at it has happened (float sums)
@@ -60,6 +70,8 @@ TEN_UM = bytes.fromhex("6D FA 00 00 00 FA 00 00 00 FA 00 00 00 0D")
 X_250 = bytes.fromhex("6D FA 00 00 00 00 00 00 00 00 00 00 00 0D")
 #: TV-31: X + 25,000 µsteps = 1000 µm, 5 s at 200 µm/s (5000 µsteps/s)
 LONG_X = bytes.fromhex("6D A8 61 00 00 00 00 00 00 00 00 00 00 0D")
+#: TV-31's speed in µsteps/s: 200 µm/s × 25
+LONG_X_SPEED = 5000
 OpenTarget = Callable[..., "Target"]  # the `open_target` fixture
 
 GET_POSITION = b"c\r"
@@ -84,9 +96,9 @@ def show(data: bytes) -> str:
 @dataclass
 class Host:
     """A port opened as a host program opens it. Durations are device seconds: `scale` (from
-    `fast_forward`) converts them to wall time."""
+    `fast_forward`) converts them to the test's clock."""
 
-    port: serial.Serial
+    port: serial.SerialBase
     target: Target
     scale: float = 1.0
 
@@ -97,9 +109,13 @@ class Host:
         bits = 1 + port.bytesize + (0 if port.parity == serial.PARITY_NONE else 1) + port.stopbits
         return bits / port.baudrate
 
+    def now(self) -> float:
+        """The test's clock (`Target.monotonic`)."""
+        return self.target.monotonic()
+
     def send(self, data: bytes) -> float:
-        """Write `data`; return when the device has its last byte at the earliest (host clock)."""
-        start = time.monotonic()
+        """Write `data`; return when the device has its last byte at the earliest (test's clock)."""
+        start = self.now()
         self.port.write(data)
         return start + len(data) * self.char / self.scale
 
@@ -113,7 +129,7 @@ class Host:
     def expect(self, expected: bytes, within: float = 1.0) -> float:
         """Read `len(expected)` bytes, assert they are `expected`; return when they had all arrived."""
         data = self.read(len(expected), within)
-        arrived = time.monotonic()
+        arrived = self.now()
         assert data == expected, f"got {show(data)}, expected {show(expected)}"
         return arrived
 
@@ -124,8 +140,8 @@ class Host:
         assert data == b"", f"expected silence for {seconds} s, got {show(data)}"
 
     def quiet_until(self, instant: float) -> None:
-        """Nothing arrives until `instant` (host clock)."""
-        self.quiet(max(0.0, instant - time.monotonic()) * self.scale)
+        """Nothing arrives until `instant` (test's clock)."""
+        self.quiet(max(0.0, instant - self.now()) * self.scale)
 
     def drain(self, silence: float = 0.3) -> bytes:
         """Whatever arrives until `silence` seconds pass without a byte (a read of one byte returns
@@ -136,9 +152,10 @@ class Host:
             data += chunk + self.port.read(self.port.in_waiting)
         return data
 
-    def exchange(self, frame: bytes, expected: bytes, within: float = 1.0) -> None:
+    def exchange(self, frame: bytes, expected: bytes, within: float = 1.0) -> float:
+        """Send `frame`, expect `expected`; return when it had all arrived."""
         self.send(frame)
-        self.expect(expected, within)
+        return self.expect(expected, within)
 
     def status(self) -> bytes:
         self.send(GET_STATUS)
@@ -148,6 +165,35 @@ class Host:
         self.send(GET_POSITION)
         return self.read(13)
 
+    def after(self, instant: float, seconds: float) -> float:
+        """`seconds` device seconds after `instant`, on the test's clock."""
+        return instant + seconds / self.scale
+
+    def assert_at(self, measured: float, expected: float) -> None:
+        """`measured` (after the bytes were read) is `expected`: exactly in virtual time, within
+        -EARLY ... +SLACK on a daemon's port (wall time is the point there: the daemon's and the
+        host's scheduling); not checked on a real controller, whose latency is not specified."""
+        late = measured - expected
+        if self.target.virtual:
+            assert abs(late) <= EXACT, f"{late * 1e6:+.3f} µs from the expected instant"
+        elif not self.target.real:
+            assert -EARLY <= late <= SLACK, f"{late * 1000:+.1f} ms from the expected instant"
+
+    def expect_at(self, expected: bytes, instant: float, within: float = 1.0) -> None:
+        """Expect `expected`, its last byte arriving at `instant` (`assert_at`)."""
+        self.assert_at(self.expect(expected, within), instant)
+
+
+def assert_halted(host: Host, data: bytes, seconds: float) -> None:
+    """A `c` reply during the TV-31 move: Y = Z = 0 and X where `seconds` (test's clock) of motion
+    put it: in virtual time to the microstep the device rounds to, elsewhere within the host's
+    timing uncertainty (SLACK at each end, scaled to device time)."""
+    x = int.from_bytes(data[:4], "little", signed=True)
+    assert data[4:] == ZEROS[4:] + CR, show(data)
+    moved = LONG_X_SPEED * seconds * host.scale
+    bound = 1 if host.target.virtual else LONG_X_SPEED * SLACK * host.scale
+    assert abs(x - moved) <= bound, (x, moved)
+
 
 def connect(
     open_target: Callable[..., Target],
@@ -155,16 +201,19 @@ def connect(
     overrides: dict[str, Any] | None = None,
     *,
     scale: float = 1.0,
+    timing: str = "realistic",
     **settings: Any,
 ) -> Host:
     """The port opened as the vector's host opens it (`settings` change the profile's line
-    settings), device time `scale`× on the emulator (`fast_forward`). A real controller is first
-    brought back to the vectors' starting point: the emulator starts every test factory-fresh, a
-    real unit keeps what the previous test left."""
-    target = open_target(profile, overrides)
+    settings), device time `scale`× on a daemon (`fast_forward`). A real controller is first
+    brought back to the vectors' starting point: the emulator starts every test factory-fresh (a
+    `stageemu://` URL as `--port` too: each open makes a device), a real unit keeps what the
+    previous test left."""
+    target = open_target(profile, overrides, timing)
     if target.real:
         port = target.open()
-        restore_baseline(Host(port, target))
+        if not target.path.startswith(f"{SCHEME}://"):
+            restore_baseline(Host(port, target))
         for name, value in settings.items():
             setattr(port, name, value)
     else:
@@ -193,29 +242,27 @@ def reset(host: Host) -> None:
     host.drain()  # the deaf time, and the NUL some units send (MP-58)
 
 
-def assert_at(measured: float, expected: float) -> None:
-    """`measured` (host clock, after the bytes were read) is `expected` within -EARLY ... +SLACK."""
-    late = measured - expected
-    assert -EARLY <= late <= SLACK, f"{late * 1000:+.1f} ms from the expected instant"
-
-
 def fast_forward(target: Target, scale: float) -> float:
-    """On the emulator run device time `scale` times faster than wall time; returns the scale in
-    force (1 on a real port, where nothing changes)."""
-    if target.real:
+    """On a daemon run device time `scale` times faster than wall time; returns the scale in force:
+    1 in virtual time (a wait costs nothing there, and every instant stays exact) and on a real
+    port (where nothing changes)."""
+    if target.real or target.virtual:
         return 1.0
     target.ctl().clock(scale)
     return scale
 
 
 def wait_for(target: Target, name: str, wanted: Callable[[Any], bool], timeout: float = 2.0) -> Any:
-    """Poll observable `name` until `wanted(value)`: the daemon has acted on what the host wrote."""
+    """Observable `name` once `wanted(value)`: the device has acted on what the host wrote. In
+    virtual time it has as soon as the write returns (on a `fast` port the device takes host bytes
+    as they are handed over); a daemon reads them in its own time, so it is polled, on the wall
+    clock: the device's is paused."""
+    value = target.get(name)
     deadline = time.monotonic() + timeout
-    while True:
+    while not wanted(value):
+        assert not target.virtual and time.monotonic() < deadline, f"{name} is still {value!r}"
         value = target.get(name)
-        if wanted(value):
-            return value
-        assert time.monotonic() < deadline, f"{name} is still {value!r} after {timeout} s"
+    return value
 
 
 def wait_state(target: Target, state: str) -> None:
@@ -227,11 +274,17 @@ class DeviceClock:
     """The emulator's clock, paused; `to(t)` steps it to `t` seconds after `start()`."""
 
     target: Target
-    now: float = field(init=False)
     zero: float = field(init=False)
+    _stepped: float = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        self.now = self.zero = self.target.ctl().pause()["now"]
+        self.zero = self._stepped = self.target.ctl().pause()["now"]
+
+    @property
+    def now(self) -> float:
+        """The device's time: in virtual time a host's wait (a silent read) moves it too; a paused
+        daemon's moves only by steps."""
+        return self.target.monotonic() if self.target.virtual else self._stepped
 
     def start(self) -> None:
         """t = 0 of a vector: the instant the device processed the frame just written."""
@@ -246,8 +299,9 @@ class DeviceClock:
         self._step_to(self.zero + t + NUDGE)
 
     def _step_to(self, wanted: float) -> None:
-        if wanted > self.now:
-            self.now = self.target.ctl().step(wanted - self.now)["now"]
+        now = self.now
+        if wanted > now:
+            self._stepped = self.target.ctl().step(wanted - now)["now"]
 
 
 def frozen(
@@ -275,23 +329,72 @@ def expect_at(host: Host, clock: DeviceClock, t: float, reply: bytes) -> None:
     host.expect(reply)
 
 
+class DeviceLog:
+    """The warnings the emulator logs (MP-5: line mismatches), as lines from the port's name on
+    (`main: host uses ...`): a daemon's stderr (`stage-emu: dut/main: ...`), or, in virtual time, the
+    records of the `stage_emu` logger in this process (`mp285/main: ...`)."""
+
+    def drain(self) -> list[str]:
+        """Lines logged since the last call."""
+        raise NotImplementedError
+
+    def wait_line(self, needle: str, timeout: float = 2.0) -> str:
+        """The next line containing `needle`, waiting up to `timeout` seconds (test's clock)."""
+        raise NotImplementedError
+
+
+def port_part(line: str) -> str:
+    """`stage-emu: dut/main: text` or `mp285/main: text` -> `main: text`."""
+    return line.split("/", 1)[-1]
+
+
 @dataclass
-class DaemonLog:
-    """The warnings a daemon writes to its stderr (MP-5), read without blocking."""
+class DaemonLog(DeviceLog):
+    """A daemon's stderr, read without blocking."""
 
     daemon: RunningDaemon
     _seen: int = field(default=0, repr=False)
 
     def drain(self) -> list[str]:
-        """Lines written since the last call."""
         with self.daemon.log.changed:
             lines = self.daemon.log.lines[self._seen :]
         self._seen += len(lines)
-        return lines
+        return [port_part(line) for line in lines]
 
     def wait_line(self, needle: str, timeout: float = 2.0) -> str:
-        """The next line containing `needle`."""
         found = self.daemon.log.wait_line(needle, self._seen, timeout)
         assert found is not None, f"no log line with {needle!r} within {timeout} s"
         self._seen = found[0] + 1
-        return found[1]
+        return port_part(found[1])
+
+
+class HostedLog(DeviceLog, logging.Handler):
+    """The warnings of a device served in this process; `wait_line` lets device time pass as a
+    host's wait does until one comes."""
+
+    def __init__(self, target: Target) -> None:
+        logging.Handler.__init__(self, logging.WARNING)
+        self.target = target
+        self.lines: list[str] = []
+        self._seen = 0
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.lines.append(port_part(record.getMessage()))
+
+    def drain(self) -> list[str]:
+        lines = self.lines[self._seen :]
+        self._seen = len(self.lines)
+        return lines
+
+    def wait_line(self, needle: str, timeout: float = 2.0) -> str:
+        hosted = self.target.hosted
+        assert hosted is not None
+
+        def found() -> int | None:
+            return next((i for i in range(self._seen, len(self.lines)) if needle in self.lines[i]), None)
+
+        hosted.wait_for(lambda: found() is not None, hosted.deadline(timeout))
+        index = found()
+        assert index is not None, f"no log line with {needle!r} within {timeout} s"
+        self._seen = index + 1
+        return self.lines[index]

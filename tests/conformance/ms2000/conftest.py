@@ -2,15 +2,20 @@
 program would and checks every byte that comes back.
 
 Waiting is always for bytes: replies are read with the port's timeout, "(idle)" polls `/` until
-`N\\r\\n`, and a pause is a read that must time out with nothing received (which is also the check
-that the controller sent nothing meanwhile). Control-channel helpers (`now`, `advance`, `scaled`)
-skip the test on a real port.
+`N\\r\\n` with a pause between polls, and a pause is a read that must time out with nothing received
+(which is also the check that the controller sent nothing meanwhile). Control-channel helpers (`now`,
+`advance`, `scaled`) skip the test on a real port.
+
+Every instant a test measures is on `Host.monotonic()`, the target's clock: device time in virtual
+time (the default target: a wait costs no wall time and every instant is exact), the wall clock on a
+daemon or a real port. `Host.slack` is a timing check's tolerance: none in virtual time, the given
+one where the wall clock decides.
 """
 
 from __future__ import annotations
 
 import contextlib
-import time
+import os
 from collections.abc import Callable, Iterator, Sequence
 from typing import TYPE_CHECKING, Any
 
@@ -24,6 +29,12 @@ if TYPE_CHECKING:
 CHAR_S = 10 / 9600
 #: "⇒ ∅" of the test vectors: no byte within 1 s
 SILENCE_S = 1.0
+#: the pause between two `/` polls of "(idle)" (device seconds), as host programs leave: a long move
+#: costs ten polls a second, not one per reply time (a 10 s move: about 15 ms of wall time in
+#: virtual time)
+POLL_PAUSE_S = 0.1
+#: float rounding of device instants, the only tolerance of a timing check in virtual time
+EXACT_S = 1e-9
 VERSION = b":A Version: USB-9.2k \r\n"
 ACK = b":A\r\n"
 IDLE = "idle"
@@ -72,15 +83,21 @@ class Host:
                 self.ask(command, expected)
 
     def idle(self, timeout: float = 60.0) -> None:
-        """The vectors' "(idle)": poll `/` until `N\\r\\n`; each poll must answer `B\\r\\n` or `N\\r\\n`."""
-        deadline = time.monotonic() + timeout
+        """The vectors' "(idle)": poll `/` until `N\\r\\n`, a pause between polls (`poll_pause`);
+        each poll must answer `B\\r\\n` or `N\\r\\n`."""
+        deadline = self.monotonic() + timeout
         while True:
             self.write(b"/\r")
             answer = self.port.read(3)
             assert answer in (b"B\r\n", b"N\r\n")
             if answer == b"N\r\n":
                 return
-            assert time.monotonic() < deadline, f"still busy after {timeout} s"
+            assert self.monotonic() < deadline, f"still busy after {timeout} s"
+            self.poll_pause()
+
+    def poll_pause(self) -> None:
+        """The silence a polling host leaves between two polls: `POLL_PAUSE_S` of device time."""
+        self.silent(POLL_PAUSE_S / self.scale)
 
     def restart(self) -> None:
         """Bring a real controller to P0 of the vectors, as the emulator's factory reset does: the
@@ -129,10 +146,21 @@ class Host:
             self.port.timeout = previous
 
     def wait_until(self, deadline: float) -> None:
-        """Wait, in silence, until `time.monotonic()` reaches `deadline`."""
-        remaining = deadline - time.monotonic()
+        """Wait, in silence, until `monotonic()` reaches `deadline`."""
+        remaining = deadline - self.monotonic()
         if remaining > 0:
             self.silent(remaining)
+
+    # ---- the test's clock -----------------------------------------------------------------------
+
+    def monotonic(self) -> float:
+        """The test's clock (s): device time in virtual time, the wall clock otherwise."""
+        return self.target.monotonic()
+
+    def slack(self, seconds: float) -> float:
+        """The tolerance of a timing check: `seconds` where the wall clock decides (a daemon's or a
+        real port: the host's scheduling and the machine's load), none in virtual time."""
+        return EXACT_S if self.target.virtual else seconds
 
     # ---- control channel ------------------------------------------------------------------------
 
@@ -142,15 +170,23 @@ class Host:
     def get(self, name: str) -> Any:
         return self.target.get(name)
 
+    def is_port_path(self, path: str) -> bool:
+        """Whether `path`, a port as `get: ports` names it (MS-5), is the kind the emulator serves: a
+        pseudo-terminal on a daemon, the device's in-process `stageemu://` URL in virtual time
+        (which has no pseudo-terminal)."""
+        if self.target.virtual:
+            return path.startswith("stageemu://")
+        return os.path.realpath(path).startswith("/dev/pts/")
+
     def axis(self, letter: str) -> dict[str, Any]:
         return self.get("axes")[letter]
 
     def now(self) -> float:
-        """Device time (s)."""
+        """Device time (s), from the control channel."""
         return float(self.target.ctl().clock()["now"])
 
     def wait_device(self, instant: float) -> None:
-        """Wait, in silence, until device time `instant`."""
+        """Wait, in silence, until device time `instant` (in virtual time, exactly that instant)."""
         while (remaining := instant - self.now()) > 0:
             self.silent(remaining / self.scale)
 
@@ -171,8 +207,21 @@ class Host:
 
     @contextlib.contextmanager
     def scaled(self, scale: float) -> Iterator[None]:
-        """Run device time `scale` times faster than wall time (long moves, spins, homing)."""
+        """Run device time `scale` times faster than wall time (long moves, spins, homing).
+
+        In virtual time waits cost nothing and the clock is left alone; the port's read timeout is
+        stretched by `scale` instead, so a reply that takes device time (an autofocus run) is awaited
+        as long, in device time, as on a daemon running `scale` times faster.
+        """
         ctl = self.target.ctl()
+        if self.target.virtual:
+            previous = self.port.timeout
+            self.port.timeout = None if previous is None else previous * scale
+            try:
+                yield
+            finally:
+                self.port.timeout = previous
+            return
         ctl.clock(scale)
         self.scale = scale
         try:

@@ -33,12 +33,15 @@ def arrivals(host: Host, count: int, timeout: float = 2.0) -> list[tuple[int, in
     return cells
 
 
+@pytest.mark.smoke
 def test_tv_129_grid_defaults_and_range(seq: Host) -> None:
     """TV-129 (MS-ARRAY-1): the 96-well plate defaults; zero columns is out of range."""
     seq.run(
         [
             (b"AR X? Y? Z? F? T?\r", b":A X=12 Y=8 Z=9.000000 F=-9.000000 T=0.000000\r\n"),
             (b"AR X=0\r", b":N-4\r\n"),
+            (b"AR Y=1001\r", b":N-4\r\n"),
+            (b"AR X=2.5\r", b":N-4\r\n"),
         ]
     )
 
@@ -48,6 +51,7 @@ def test_tv_130_aij_moves_to_a_cell(seq: Host) -> None:
     seq.run(
         [
             (b"AIJ X=2 Y=3\r", ACK),
+            (b"/\r", b"B\r\n"),
             IDLE,
             (b"W X Y\r", b":A 90000 -180000\r\n"),
             (b"AIJ X? Y?\r", b":A X=2 Y=3\r\n"),
@@ -80,9 +84,10 @@ def test_tv_132_tilt(seq: Host) -> None:
 
 @pytest.mark.control
 def test_tv_133_self_scan_serpentine_through_complete(seq: Host) -> None:
-    """TV-133 (MS-ARRAY-5, MS-ARRAY-7): bare `AR` visits the 2×2 array in serpentine order and the
-    state passes C before idle; watched step by step on a paused clock."""
-    seq.run(TWO_BY_TWO)
+    """TV-133 (MS-ARRAY-5, MS-ARRAY-7): serpentine by default; bare `AR` visits the 2×2 array in
+    that order, moving (M) to each cell and dwelling (D) there, then C and idle; watched step by step
+    on a paused clock."""
+    seq.run([*TWO_BY_TWO, (b"SN F?\r", b":A F=1\r\n"), (b"M X=5000\r", ACK), IDLE])
     ctl = seq.target.ctl()
     ctl.subscribe("dut")
     seq.ask(b"AR\r", ACK)
@@ -99,7 +104,7 @@ def test_tv_133_self_scan_serpentine_through_complete(seq: Host) -> None:
     finally:
         ctl.resume()
     assert arrivals(seq, 4) == [(1, 1), (2, 1), (2, 2), (1, 2)]
-    assert seen.endswith("CI")
+    assert seen == "MDMDMDMCI"
 
 
 @pytest.mark.control
@@ -145,13 +150,14 @@ def test_tv_136_rm_x0_starts_only_with_the_knob(
 
 @pytest.mark.control
 def test_tv_137_array_observable_and_lcd(connect: Callable[..., Host]) -> None:
-    """TV-137 (MS-ARRAY-7): after `AIJ X=3 Y=2` the state is A at (3,2); with 8 rows the LCD shows
-    the row as a letter."""
+    """TV-137 (MS-ARRAY-7): after `AIJ X=3 Y=2` the state is A at (3,2), no scan running; with 8 rows
+    the LCD shows the row as a letter, with 5 as a number."""
     host = connect("ms2000-all-modules")
     host.run([(b"AIJ X=3 Y=2\r", ACK), IDLE])
-    array = host.get("array")
-    assert {key: array[key] for key in ("state", "i", "j")} == {"state": "A", "i": 3, "j": 2}
+    assert host.get("array") == {"state": "A", "i": 3, "j": 2, "running": None}
     assert "A 3,B" in host.get("lcd")[1]
+    host.ask(b"AR Y=5\r", ACK)
+    assert "A 3,2" in host.get("lcd")[1]
 
 
 @pytest.mark.control

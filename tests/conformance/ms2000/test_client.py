@@ -29,15 +29,16 @@ def test_identity(stage: MS2000) -> None:
 
 def test_move_wait_and_where(stage: MS2000) -> None:
     """MS-51, MS-69, MS-77, MS-78: positions come back keyed in hardware order whatever the query
-    order; `wait_until_idle` polls `/`."""
+    order; `wait_until_idle` polls `/` (back to back: its pause between polls is a wall-clock sleep,
+    which passes no device time in virtual time)."""
     assert stage.where() == {"X": 0.0, "Y": 0.0, "Z": 0.0}
     stage.move(X=1000, Y=-505)
     assert stage.is_busy()
-    stage.wait_until_idle(timeout=10)
+    stage.wait_until_idle(timeout=10, poll=0)
     assert not stage.is_busy()
     assert stage.where("Y", "X") == {"X": 1000.0, "Y": -505.0}
     stage.movrel(Z=250)
-    stage.wait_until_idle(timeout=10)
+    stage.wait_until_idle(timeout=10, poll=0)
     assert stage.where("Z") == {"Z": 250.0}
     stage.here(X=0)
     assert stage.where("X") == {"X": 0.0}
@@ -57,6 +58,7 @@ def test_settings_in_every_reply_shape(stage: MS2000) -> None:
     assert stage.status_byte("X") == 10
 
 
+@pytest.mark.smoke
 def test_errors_are_typed(stage: MS2000) -> None:
     """MS-39: `:N-<code>` raises the matching exception, carrying the command."""
     with pytest.raises(OutOfRange) as error:

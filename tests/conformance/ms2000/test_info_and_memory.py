@@ -10,9 +10,12 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-import serial
 
 from emulator.profile import load_profile
+from emulator.urlhandler.control import HostedControl
+from emulator.urlhandler.hosted import serve
+from emulator.urlhandler.url import VIRTUAL, UrlOptions
+from tests.conformance.conftest import Target
 from tests.conformance.ms2000.conftest import ACK, IDLE, SILENT, VERSION, Host, Step
 from tests.support.daemon import start_daemon
 
@@ -62,7 +65,7 @@ def block(lines: list[bytes]) -> bytes:
 
 VECTORS = [
     pytest.param([(b"BU\r", b"STD_XYZ\r\n")], id="tv093_build"),
-    pytest.param([(b"BU X\r", block(BU_X_LINES))], id="tv094_build_modules"),
+    pytest.param([(b"BU X\r", block(BU_X_LINES))], id="tv094_build_modules", marks=pytest.mark.smoke),
     pytest.param(
         [
             (b"BU Y-\r", ACK),
@@ -70,6 +73,10 @@ VECTORS = [
             (b"BU Y=98\r", ACK),
             (b"BU Y?\r", b"ab\r\n"),
             (b"BU Y=127\r", b":N-4\r\n"),
+            *[(b"BU Y=99\r", ACK)] * 18,
+            (b"BU Y=99\r", b":N-4\r\n"),  # 20 characters at most
+            (b"BU Y-\r", ACK),
+            (b"BU Y?\r", b"\r\n"),
         ],
         id="tv096_user_string",
     ),
@@ -80,6 +87,7 @@ VECTORS = [
             (b"BU Z?\r", b":A 65535\r\n"),
             (b"BU Z+\r", ACK),
             (b"BU Z?\r", b":A 0\r\n"),
+            (b"BU Z=70000\r", b":N-4\r\n"),
         ],
         id="tv097_volatile_counter",
     ),
@@ -179,28 +187,43 @@ def test_tv_103_error_log(ms: Host) -> None:
 
 
 @contextlib.contextmanager
-def emulator_run(workdir: Path) -> Iterator[Host]:
-    """One run of the emulator serving the default profile, with its state directory in `workdir`."""
-    from tests.conformance.conftest import Target
-
+def emulator_run(workdir: Path, virtual: bool) -> Iterator[Host]:
+    """One run of the emulator serving the default profile, with its state directory in `workdir`:
+    a device in this process in virtual time, or a daemon (`--target daemon`)."""
+    profile = load_profile("ms2000")
+    if virtual:
+        hosted = serve(UrlOptions(profile="ms2000", time=VIRTUAL, state_dir=workdir))
+        target = Target(
+            hosted.url(), "ms2000", profile, False, "dut", HostedControl(hosted, "dut"), hosted=hosted
+        )
+        try:
+            yield Host(target, target.open())
+        finally:
+            target.close()  # switches the device off: it saves what it keeps
+        return
     rig = workdir / "rig.yaml"
     rig.write_text(json.dumps({"spec": 1, "devices": [{"name": "dut", "profile": "ms2000"}]}))
     daemon = start_daemon(workdir, [str(rig)], expect_ports=1)
     try:
-        target = Target(daemon.port("dut"), "ms2000", load_profile("ms2000"), False, "dut", daemon.control())
-        with serial.Serial(target.path, 9600, timeout=2.0) as port:
-            yield Host(target, port)
+        target = Target(daemon.port("dut"), "ms2000", profile, False, "dut", daemon.control())
+        try:
+            yield Host(target, target.open())
+        finally:
+            target.close()
     finally:
         daemon.stop()
 
 
 @pytest.mark.control
-def test_tv_105_saved_settings_survive_an_emulator_restart(tmp_path: Path) -> None:
+def test_tv_105_saved_settings_survive_an_emulator_restart(
+    request: pytest.FixtureRequest, tmp_path: Path
+) -> None:
     """TV-105 (MS-111): `SS Z` settings survive a restart of the emulator (same `device_id`, same
     state directory); unsaved ones are lost at the next power cycle."""
-    with emulator_run(tmp_path) as host:
+    virtual = request.config.getoption("--target") == "virtual"
+    with emulator_run(tmp_path, virtual) as host:
         host.run([(b"S X=3.3\r", ACK), (b"SS Z\r", ACK)])
-    with emulator_run(tmp_path) as host:
+    with emulator_run(tmp_path, virtual) as host:
         host.run([(b"S X?\r", b":A X=3.300000\r\n"), (b"S Y=2\r", ACK)])
         host.input("power_cycle")
         host.ask(b"S Y?\r", b":A Y=5.145600\r\n")
@@ -223,27 +246,31 @@ def test_tv_106_soft_limits_remembered_without_saving(ms: Host) -> None:
     ],
 )
 def test_tv_107_factory_reset_scheduled_and_cancelled(ms: Host, orders: list[bytes], reply: bytes) -> None:
-    """TV-107 (MS-110, MS-112): `SS X` brings factory settings at the next power-up; `SS Y` cancels
-    it and the saved `S X=3.3` stays."""
+    """TV-107 (MS-110, MS-112): `SS X` brings factory settings at the next power-up, and they stay at
+    the one after; `SS Y` cancels it and the saved `S X=3.3` stays."""
     ms.run([(b"S X=3.3\r", ACK), (b"SS Z\r", ACK), *((order, ACK) for order in orders)])
-    ms.input("power_cycle")
-    ms.ask(b"S X?\r", reply)
+    for _ in range(2):
+        ms.input("power_cycle")
+        ms.ask(b"S X?\r", reply)
 
 
 @pytest.mark.control
 def test_tv_109_positions_saved_at_power_off(ms: Host) -> None:
-    """TV-109 (MS-113, MS-112): positions survive a power cycle unless `SP X=1`."""
+    """TV-109 (MS-113, MS-112): positions survive a power cycle unless `SP X=1`; then the origin is
+    lost, not the stage's place (still 4540 counts from the old one)."""
     ms.run([(b"M X=1000\r", ACK), IDLE])
     ms.input("power_cycle")
     ms.run([(b"W X\r", b":A 1000\r\n"), (b"SP X=1\r", ACK), (b"SP X?\r", b":A X=1\r\n")])
     ms.input("power_cycle")
     ms.ask(b"W X\r", b":A 0\r\n")
+    assert ms.axis("X")["machine_counts"] == 4540
 
 
 @pytest.mark.control
 def test_tv_110_savepos_alone_silences_until_power_cycle(ms: Host) -> None:
-    """TV-110 (MS-113, MS-18): after bare `SP` answers, nothing is answered until a power cycle."""
-    ms.run([(b"SP\r", ACK), (b"V\r", b""), SILENT])
+    """TV-110 (MS-113, MS-18): after bare `SP` answers, nothing is answered until a power cycle, not
+    even a low-level read frame."""
+    ms.run([(b"SP\r", ACK), (b"V\r", b""), (b"\xffB\x18a\x03:", b""), SILENT])
     ms.input("power_cycle")
     ms.ask(b"V\r", VERSION)
 
@@ -253,6 +280,7 @@ def test_tv_113_lcd_text_and_units(ms: Host) -> None:
     """TV-113 (MS-116): with DIP SW2 down the bottom line shows the quoted `LCD` text; unquoted
     text clears it; `UN` toggles units."""
     ms.input("dip", sw2="down")
+    assert ms.get("lcd")[1] == "USB-9.2k"
     ms.ask(b'LCD "hello"\r', ACK)
     assert ms.get("lcd")[1] == "hello"
     ms.ask(b"LCD hello\r", ACK)

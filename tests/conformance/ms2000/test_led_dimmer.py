@@ -9,6 +9,7 @@ import pytest
 from tests.conformance.ms2000.conftest import ACK, Host
 
 
+@pytest.mark.smoke
 @pytest.mark.control
 def test_tv_016_ttl_pwm_mode_with_trailing_duty(ms: Host) -> None:
     """TV-16 (MS-24, MS-LED-3, MS-LED-2): `TTL Y=9 55` selects PWM on OUT0 and sets the duty to 55."""

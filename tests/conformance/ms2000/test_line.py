@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
 
 import pytest
@@ -12,6 +11,7 @@ from tests.conformance.conftest import NO_PARITY, carries_parity
 from tests.conformance.ms2000.conftest import ACK, SILENT, VERSION, Host
 
 
+@pytest.mark.smoke
 def test_tv_116_stop_bits(ms: Host) -> None:
     """TV-116 (MS-3, MS-4): `SB X=2` takes effect at once; a host still sending 1 stop bit is
     understood (a UART samples only the first stop bit)."""
@@ -24,6 +24,7 @@ def test_tv_117_dip_baud_read_at_power_up(ms: Host) -> None:
     is understood, one at 9600 gets nothing back."""
     ms.input("dip", sw4="down", sw5="down")
     ms.input("power_cycle")
+    assert ms.get("baud") == 115200
     ms.input("host_line", baud=115200)
     ms.ask(b"V\r", VERSION)
     ms.input("host_line", baud=9600)
@@ -62,6 +63,7 @@ def test_tv_120_data_bits_and_parity(ms: Host) -> None:
     ms.ask(b"V\r", VERSION)
 
 
+@pytest.mark.smoke
 def test_tv_120_data_bits_and_parity_on_the_wire(
     request: pytest.FixtureRequest, connect: Callable[..., Host]
 ) -> None:
@@ -77,10 +79,12 @@ def test_tv_120_data_bits_and_parity_on_the_wire(
     ms.ask(b"V\r", VERSION)
 
 
+@pytest.mark.smoke
 @pytest.mark.control
 def test_tv_121_ports(ms: Host) -> None:
-    """TV-121 (MS-5): the main port is a pseudo-terminal; builds without TTL REPORT have no auxiliary
-    port (the daemon lists only the ports a device has, so `aux` reads as absent)."""
+    """TV-121 (MS-5): the main port is a pseudo-terminal (in virtual time the in-process URL that
+    stands for it); builds without TTL REPORT have no auxiliary port (the emulator lists only the
+    ports a device has, so `aux` reads as absent)."""
     ports = ms.get("ports")
-    assert os.path.realpath(ports["main"]).startswith("/dev/pts/")
+    assert ms.is_port_path(ports["main"])
     assert ports.get("aux") is None

@@ -7,7 +7,6 @@ where nothing follows.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Callable
 
 import pytest
@@ -20,15 +19,17 @@ READ_BUSY = b"\x18?\x00:"
 
 
 def wait_idle_low_level(host: Host, timeout: float = 30.0) -> None:
-    """The vectors' "(idle)" in low-level mode: poll the busy frame until `b`."""
-    deadline = time.monotonic() + timeout
+    """The vectors' "(idle)" in low-level mode: poll the busy frame until `b`, pausing between
+    polls as `Host.idle` does."""
+    deadline = host.monotonic() + timeout
     while True:
         host.write(READ_BUSY)
         answer = host.port.read(1)
         assert answer in (b"B", b"b")
         if answer == b"b":
             return
-        assert time.monotonic() < deadline, f"still busy after {timeout} s"
+        assert host.monotonic() < deadline, f"still busy after {timeout} s"
+        host.poll_pause()
 
 
 def test_tv_122_to_126_low_level_session(ms: Host) -> None:
@@ -54,6 +55,7 @@ def test_tv_122_to_126_low_level_session(ms: Host) -> None:
     ms.ask(b"RS X\r", b":A 2\r\n")
 
 
+@pytest.mark.smoke
 def test_tv_127_where_decimals_by_control_pair(ms: Host) -> None:
     """TV-127 (MS-119): 0xFF `H` makes WHERE print one decimal (hundredths of a micron), 0xFF `T`
     none, without a reply."""
@@ -77,7 +79,9 @@ def test_tv_128_no_low_level_without_the_module(connect: Callable[..., Host]) ->
 @pytest.mark.parametrize(
     ("frames", "reply"),
     [
-        pytest.param(b"\x18a\x03\x99\x99:", b"\x00\x00\x00", id="read_with_stray_data"),
+        pytest.param(
+            b"\x18a\x03\x99\x99:", b"\x00\x00\x00", id="read_with_stray_data", marks=pytest.mark.smoke
+        ),
         pytest.param(b"\x18Q\x03:" + READ_POSITION, b"\x00\x00\x00", id="unknown_command_consumed"),
         pytest.param(b"\x19a\x03:\x1al\x03:", b"\x00\x00\x00\x00\x00\x00\x0a", id="other_axes"),
     ],

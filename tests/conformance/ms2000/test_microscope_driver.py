@@ -3,13 +3,15 @@
 The driver is used as its users use it, with its defaults (9600 baud, 0.5 s timeout), so the test
 runs unchanged against a real controller. It reads up to CR only, so every reply after the first
 starts with the LF left over from the previous one; it recognises an absent axis by silence and
-reads several replies at fixed offsets (MS-106, MS-107, MS-54, MS-81, MS-LED-2). Homing (a spin to
-each limit) and the two-axis build are exercised on the model in tests/unit/ms2000.
+reads several replies at fixed offsets (MS-106, MS-107, MS-54, MS-81, MS-LED-2). In virtual time the
+driver opens the device's in-process URL and sleeps in device time. Homing (a spin to each limit)
+and the two-axis build are exercised on the model in tests/unit/ms2000.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from types import SimpleNamespace
 from typing import TYPE_CHECKING, Any
 
 import pytest
@@ -27,12 +29,24 @@ asi = pytest.importorskip("microscope.controllers.asi")
 OFFSET = 20000
 
 
-def test_tv_218_microscope_driver(open_target: Callable[..., Target]) -> None:
+@pytest.mark.smoke
+def test_tv_218_microscope_driver(
+    open_target: Callable[..., Target], monkeypatch: pytest.MonkeyPatch
+) -> None:
     """TV-218 (MS-106, MS-54, MS-78, MS-81, MS-77, MS-LED-2): the driver initialises, lists X Y Z,
     reads positions and settings, moves X by an offset and waits for the move with `RDSTAT`, and
     switches its LED on and off reading the brightness back."""
     target = open_target("ms2000")
-    if "://" in target.path:
+    if target.virtual:
+        # The driver opens a device path with serial.Serial and waits with time.sleep. In virtual
+        # time it opens the device's in-process URL instead, and its sleeps pass device time (a wall
+        # sleep passes none); everything else is the driver as its users run it.
+        def open_url(port: str, **settings: Any) -> serial.SerialBase:
+            return serial.serial_for_url(port, **settings)
+
+        monkeypatch.setattr(asi, "serial", SimpleNamespace(**{**vars(serial), "Serial": open_url}))
+        monkeypatch.setattr(asi, "time", SimpleNamespace(sleep=target.ctl().step))
+    elif "://" in target.path:
         pytest.skip("python-microscope's driver opens a device path (serial.Serial), not a URL")
     if target.real:
         with target.open() as port:

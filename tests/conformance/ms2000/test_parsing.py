@@ -9,12 +9,16 @@ import pytest
 from tests.conformance.ms2000.conftest import ACK, SILENT, VERSION, Host, Step
 
 VECTORS = [
-    pytest.param([(b"V\r", VERSION)], id="tv001_version"),
+    pytest.param([(b"V\r", VERSION)], id="tv001_version", marks=pytest.mark.smoke),
     pytest.param([(b"v\r", VERSION), (b"s x?\r", b":A X=5.145600\r\n")], id="tv002_case_insensitive"),
-    pytest.param([(b"\r", b":N-1\r\n")], id="tv003_empty_line"),
+    pytest.param([(b"\r", b":N-1\r\n")], id="tv003_empty_line", marks=pytest.mark.smoke),
     pytest.param([(b"V\r\nCD\r", VERSION + b"Mar 14 2016:17:32:08\r\n")], id="tv005_crlf_host"),
     pytest.param([(b"\n\r", b":N-1\r\n")], id="tv006_lf_cr_is_blank"),
-    pytest.param([(b"A" * 300 + b"\r", b":N-6\r\n"), (b"/\r", b"N\r\n")], id="tv007_overlong_line"),
+    pytest.param(
+        [(b"A" * 300 + b"\r", b":N-6\r\n"), (b"/\r", b"N\r\n"), (b"W X" + b" " * 400 + b"\r", b":N-6\r\n")],
+        id="tv007_overlong_line",
+        marks=pytest.mark.smoke,
+    ),
     pytest.param(
         [(b"FOO X=1\r", b":N-1\r\n"), (b"MOVEREL X=0\r", ACK), (b"!X\r", ACK)], id="tv008_words_and_splitting"
     ),
@@ -29,7 +33,10 @@ VECTORS = [
         [(b"S F?\r", b":N-2\r\n"), (b"TTL Q=1\r", b":N-2\r\n"), (b"TTL R?\r", b":N-2\r\n")],
         id="tv021_letters_not_accepted",
     ),
-    pytest.param([(b"S Q=0\r", b":N-2\r\n"), (b"S X?\r", b":A X=5.145600\r\n")], id="tv022_lowest_code_wins"),
+    pytest.param(
+        [(b"S Q=0\r", b":N-2\r\n"), (b"S X=1 Y=0\r", b":N-4\r\n"), (b"S X?\r", b":A X=5.145600\r\n")],
+        id="tv022_lowest_code_wins",
+    ),
     pytest.param([(b"S X=1 X=2\r", ACK), (b"S X?\r", b":A X=2.000000\r\n")], id="tv023_last_item_wins"),
     pytest.param(
         [

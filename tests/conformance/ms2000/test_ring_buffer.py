@@ -58,6 +58,7 @@ def test_tv_141_pointer_mode_and_autoplay(ms: Host) -> None:
     )
 
 
+@pytest.mark.smoke
 def test_tv_142_buffer_full(ms: Host) -> None:
     """TV-142 (MS-RB-1, MS-RB-2): 50 slots; the 51st LOAD is out of range."""
     ms.run(

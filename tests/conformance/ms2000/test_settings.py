@@ -73,6 +73,9 @@ VECTORS = [
             (b"JS X? Y?\r", b":A JS_FAST=100 JS_SLOW=5\r\n"),
             (b"JS X=0\r", b":N-4\r\n"),
             (b"JS Y=-50\r", ACK),
+            (b"JS Y? Z? F? T?\r", b":A JS_SLOW=-50 JS_WHEEL=100.000000 KNOB_SLOW=1.000000 KNOB_MULT=4\r\n"),
+            (b"JS Y=2.5\r", ACK),
+            (b"JS Y?\r", b":A JS_SLOW=2.500000\r\n"),
         ],
         id="tv058_joystick_speeds",
     ),
@@ -86,12 +89,22 @@ VECTORS = [
         ],
         id="tv062_rdstat_forms",
     ),
-    pytest.param([(b"RB X\r", b":A\x0a\r\n"), (b"RB Y X\r", b":A\x0a\x0a\r\n")], id="tv063_rdsbyte_raw"),
+    pytest.param(
+        [(b"RB X\r", b":A\x0a\r\n"), (b"RB Y X\r", b":A\x0a\x0a\r\n")],
+        id="tv063_rdsbyte_raw",
+        marks=pytest.mark.smoke,
+    ),
     pytest.param(
         [(b"LL X? Y? Z?\r", b":A X=24 Y=25 Z=26\r\n"), (b"LL X=0\r", b":N-4\r\n")], id="tv111_low_level_ids"
     ),
-    pytest.param([(b"Z2B Y?\r", b":A Y=1\r\n"), (b"Z2B Z?\r", b":A Z=2\r\n")], id="tv112_hardware_index"),
-    pytest.param([(b"RA X Y\r", b":A 128 128\r\n"), (b"RA T\r", b":N-2\r\n")], id="tv114_adc"),
+    pytest.param(
+        [(b"Z2B Y?\r", b":A Y=1\r\n"), (b"Z2B Z?\r", b":A Z=2\r\n"), (b"Z2B Z=200\r", b":N-4\r\n")],
+        id="tv112_hardware_index",
+    ),
+    pytest.param(
+        [(b"RA X Y\r", b":A 128 128\r\n"), (b"RA T\r", b":N-2\r\n"), (b"RA Z F\r", b":A 0 0\r\n")],
+        id="tv114_adc",
+    ),
 ]
 
 

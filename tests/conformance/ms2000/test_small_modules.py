@@ -18,6 +18,7 @@ def allmod(connect: Callable[..., Host]) -> Host:
     return connect("ms2000-all-modules")
 
 
+@pytest.mark.smoke
 def test_tv_092_write_protect_speed(allmod: Host) -> None:
     """TV-92 (MS-109): `VB T=1027` write-protects SPEED (its sets `:N-4`), `VB T=27` releases it."""
     allmod.run(
@@ -26,6 +27,7 @@ def test_tv_092_write_protect_speed(allmod: Host) -> None:
             (b"S X=1\r", b":N-4\r\n"),
             (b"VB T=27\r", ACK),
             (b"S X=1\r", ACK),
+            (b"S X?\r", b":A X=1.000000\r\n"),
         ]
     )
 
@@ -63,15 +65,21 @@ def test_tv_212_search_index(allmod: Host) -> None:
 
 @pytest.mark.control
 def test_tv_213_index_missing(allmod: Host) -> None:
-    """TV-213 (MS-SI-1): with the index missing the search fails and logs 100 + axis index."""
+    """TV-213 (MS-SI-1): with the index missing the search fails and logs 100 + axis index; found
+    again, it succeeds."""
     allmod.input("index_missing", axis="Y")
     allmod.run([(b"SI Y=5\r", b":N-5\r\n"), (b"DU Y\r", b"101\r:A\r\n")])
+    assert allmod.input("index_missing", axis="Y", missing=False) == []
+    allmod.ask(b"SI Y=5\r", ACK)
 
 
 @pytest.mark.control
 def test_tv_214_seek_limits(allmod: Host) -> None:
     """TV-214 (MS-SI-2, MS-SI-3): a seek replies at once, is busy until it stops on the upper limit
-    (status byte 74), reads back its direction and takes only ±1."""
+    (status byte 74): it runs to the limit, backs off 3 mm and approaches again; it reads back its
+    direction and takes only ±1."""
+    ctl = allmod.target.ctl()
+    ctl.subscribe("dut")
     allmod.run([(b"SI Z=1\r", ACK), (b"/\r", b"B\r\n")])
     with allmod.scaled(10):
         allmod.run([IDLE])
@@ -80,10 +88,14 @@ def test_tv_214_seek_limits(allmod: Host) -> None:
             (b"RS Z\r", b":A 74\r\n"),
             (b"SI Z?\r", b":A Z=1\r\n"),
             (b"SI Z=2\r", b":N-4\r\n"),
+            (b"W Z\r", b":A 100000\r\n"),
         ]
     )
+    legs = [e["positions"]["Z"] for e in ctl.events(timeout=0.5) if e["ev"] == "move_complete"]
+    assert legs == ["100000", "70000", "100000"]
 
 
+@pytest.mark.smoke
 @pytest.mark.control
 def test_tv_216_solenoid_lock(allmod: Host) -> None:
     """TV-216 (MS-SECURE-1): bare SECURE `:N-3`; `X=1` unlocks; the query replies value first."""
@@ -94,7 +106,7 @@ def test_tv_216_solenoid_lock(allmod: Host) -> None:
             (b"SECURE X?\r", b"X=1 :A\r\n"),
         ]
     )
-    assert allmod.get("secure")["locked"] is False
+    assert allmod.get("secure") == {"locked": False, "position": 1.0}
 
 
 def test_tv_217_micro_servo_lock(connect: Callable[..., Host]) -> None:
@@ -106,3 +118,18 @@ def test_tv_217_micro_servo_lock(connect: Callable[..., Host]) -> None:
             (b"SECURE X?\r", b":N-2\r\n"),
         ]
     )
+
+
+@pytest.mark.control
+def test_tv_217_lever_position(connect: Callable[..., Host]) -> None:
+    """TV-217 (MS-SECURE-1): the lever position is the insert's state (any position but 0 is open)."""
+    host = connect("ms2000-uservo")
+    host.ask(b"SECURE X=0.25\r", ACK)
+    assert host.get("secure") == {"locked": False, "position": 0.25}
+
+
+def test_tv_215_kind_without_its_module(connect: Callable[..., Host]) -> None:
+    """TV-215 (MS-SI-3, MS-118): with SEARCH INDEX but not SEEK LIMITS, `SI` of the rotary Z is
+    unknown, of the linear X a search."""
+    host = connect("ms2000-all-modules", {"modules": ["SEARCH INDEX"]})
+    host.run([(b"SI Z=1\r", b":N-1\r\n"), (b"SI X=0\r", ACK)])

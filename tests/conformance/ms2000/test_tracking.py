@@ -29,6 +29,7 @@ def test_tv_205_toggle_and_pause(track: Host) -> None:
     )
 
 
+@pytest.mark.smoke
 def test_tv_206_parameters_and_report(track: Host) -> None:
     """TV-206 (MS-TRACK-2): `LR` queries in F6; bare `LR Z` is a bare multi-line report."""
     track.ask(b"LR X? Y? F?\r", b":A X=1.000000 Y=0.500000 F=0.010000\r\n")

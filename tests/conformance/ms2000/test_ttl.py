@@ -34,6 +34,7 @@ VECTORS = [
             (b"/\r", b"N\r\n"),
         ],
         id="tv090_cr_only_terminators",
+        marks=pytest.mark.smoke,
     ),
     pytest.param(
         [(b"VB Y?\r", b":A Y=0\r\n"), (b"VB Y=1\r", b":N-4\r\n"), (b"VB T=1027\r", b":N-2\r\n")],
@@ -63,6 +64,7 @@ def test_tv_076_ttl_settings_and_out0_toggle(ms: Host) -> None:
     assert ms.get("ttl_out0") == 1
 
 
+@pytest.mark.smoke
 @pytest.mark.control
 @pytest.mark.timing
 def test_tv_078_out0_pulse_after_each_move(ms: Host) -> None:
@@ -89,7 +91,8 @@ def test_tv_079_out0_modes_and_polarity(ms: Host) -> None:
     """TV-79 (MS-91): OUT0 mode 3 is refused; `F=-1` inverts the low output; F is ±1 only."""
     ms.run([(b"TTL Y=3\r", b":N-4\r\n"), (b"TTL F=-1\r", ACK)])
     assert ms.get("ttl_out0") == 1
-    ms.ask(b"TTL F=2\r", b":N-4\r\n")
+    ms.run([(b"TTL F=2\r", b":N-4\r\n"), (b"TTL Y=1 F=1\r", ACK)])
+    assert ms.get("ttl_out0") == 1
 
 
 @pytest.mark.control
@@ -125,13 +128,16 @@ def test_tv_082_z_stack_sawtooth(ms: Host) -> None:
 
 @pytest.mark.control
 def test_tv_083_z_stack_timeout_restarts(ms: Host) -> None:
-    """TV-83 (MS-94): a pulse more than F = 500 ms after the previous one returns to the start."""
+    """TV-83 (MS-94): a pulse more than F = 500 ms after the previous one returns to the start, and
+    the stack goes on from there."""
     _z_stack(ms)
     pulse = _pulse_then_where_z(ms, b":A 10\r\n")
     ms.wait_device(pulse + 0.1)
     pulse = _pulse_then_where_z(ms, b":A 20\r\n")
     ms.wait_device(pulse + 0.6)
-    _pulse_then_where_z(ms, b":A 0\r\n")
+    pulse = _pulse_then_where_z(ms, b":A 0\r\n")
+    ms.wait_device(pulse + 0.1)
+    _pulse_then_where_z(ms, b":A 10\r\n")
 
 
 @pytest.mark.control
@@ -156,14 +162,17 @@ def test_tv_085_position_reports(ms: Host) -> None:
 
 @pytest.mark.control
 def test_tv_086_ensync_output(ms: Host) -> None:
-    """TV-86 (MS-95): ENSYNC goes low at `ES` and toggles when X crosses 0.5 mm; ES takes X or Y."""
+    """TV-86 (MS-95): ENSYNC goes low at `ES` and toggles when X crosses 0.5 mm, both ways; ES takes
+    X or Y."""
     ms.ask(b"ES X=0.5\r", ACK)
     assert ms.get("ensync_out") == 0
     ms.run([(b"M X=10000\r", ACK), IDLE])
     assert ms.get("ensync_out") == 1
-    ms.ask(b"ES Z=1\r", b":N-2\r\n")
+    ms.run([(b"ES Z=1\r", b":N-2\r\n"), (b"ES X?\r", b":A X=0.500000\r\n"), (b"M X=0\r", ACK), IDLE])
+    assert ms.get("ensync_out") == 0
 
 
+@pytest.mark.smoke
 @pytest.mark.control
 def test_tv_089_in1_edges_reported(ms: Host) -> None:
     """TV-89 (MS-96): with `VB X=4` each IN1 edge sends `H` (rising) or `L` (falling)."""
@@ -172,3 +181,11 @@ def test_tv_089_in1_edges_reported(ms: Host) -> None:
     ms.expect(b"H\r\n")
     ms.input("ttl_in1", level=0)
     ms.expect(b"L\r\n")
+
+
+@pytest.mark.control
+def test_vb_y_reads_in1(ms: Host) -> None:
+    """Beside TV-91 (MS-109): `VB Y?` reads the IN1 input, so it follows its level."""
+    ms.ask(b"VB Y?\r", b":A Y=0\r\n")
+    ms.input("ttl_in1", level=1)
+    ms.ask(b"VB Y?\r", b":A Y=1\r\n")

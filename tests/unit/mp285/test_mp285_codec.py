@@ -194,13 +194,13 @@ def test_parser_payload_may_hold_cr_lf_and_ctrl_c() -> None:
 
 
 def test_parser_eight_byte_longs() -> None:
-    """MP-26, TV-16: a discarded 0D ends DISCARDING early and the rest is a second bad frame."""
+    """MP-26: a discarded 0D ends DISCARDING early and the rest is a second bad frame."""
     data = bytes.fromhex("6D FA 00 00 00 00 00 00 00 F4 01 00 00 00 00 00 00 0D 00 00 00 00 00 00 00 0D")
     assert parse_all(data) == [BadFrame(0x34), BadFrame(0x34)]
 
 
 def test_parser_buffer_overrun() -> None:
-    """MP-23, TV-14: `32` at the 65th byte; each further run of 65 another; the CR then owes nothing."""
+    """MP-23: `32` at the 65th byte; each further run of 65 another; the CR then owes nothing."""
     parser = FrameParser(64)
     items = [parser.feed_byte(b) for b in b"q" + b"A" * 64]
     assert items[-1] == BufferOverrun() and all(i is None for i in items[:-1])

@@ -19,11 +19,11 @@ def decoded(chars: list[Char]) -> list[tuple[int, bool]]:
 @pytest.mark.parametrize(
     ("data", "sender", "receiver", "expected"),
     [
-        (b"c\r", Framing(19200), DEVICE, [(0x91, False)]),  # MP-6, TV-3
-        (b"c\r", Framing(4800), DEVICE, [(0x1E, True), (0x66, True), (0x80, False)]),  # MP-6, TV-3
+        (b"c\r", Framing(19200), DEVICE, [(0x91, False)]),  # MP-6: a host at twice the baud
+        (b"c\r", Framing(4800), DEVICE, [(0x1E, True), (0x66, True), (0x80, False)]),  # MP-6: at half
         (b"\r", DEVICE, Framing(19200), [(0xE6, False), (0x80, False)]),  # MP-6
         (b"\x00", DEVICE, Framing(19200), [(0x00, True)]),  # MP-6: delivered as 00
-        (b"c\r", Framing(9600, parity="even"), DEVICE, [(0x63, True), (0x0D, False)]),  # MP-6, TV-4
+        (b"c\r", Framing(9600, parity="even"), DEVICE, [(0x63, True), (0x0D, False)]),  # MP-6: an 8E1 host
         (b"zc\r", Framing(9600, parity="even"), DEVICE, [(0x7A, False), (0x63, True), (0x0D, False)]),
         (b"c\r", Framing(9600, stop_bits=Fraction(2)), DEVICE, [(0x63, False), (0x0D, False)]),  # MP-6 item 3
     ],
@@ -32,8 +32,8 @@ def test_mp6_examples(data: bytes, sender: Framing, receiver: Framing, expected:
     assert decoded(garble(data, sender, receiver)) == expected
 
 
-def test_tv_004_parity_error_at_the_host() -> None:
-    """TV-4: the device's `31 0D` reaches an 8E1 host as 00 (framing error) and C3 (parity error)."""
+def test_8n1_bytes_at_an_8e1_receiver() -> None:
+    """MP-6: the device's `31 0D` decodes at an 8E1 host as 00 (framing error) and C3 (parity error)."""
     chars = garble(b"1\r", DEVICE, Framing(9600, parity="even"))
     assert [(c.value, c.framing_error, c.parity_error) for c in chars] == [
         (0x31, True, False),

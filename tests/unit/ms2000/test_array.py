@@ -1,8 +1,8 @@
-"""ARRAY MODULE (§9.1) on the manual clock: TV-129…TV-138 and the rules around them.
+"""ARRAY MODULE (§9.1) on the manual clock: the rules around the test vectors, which run in
+tests/conformance/ms2000 (TV-129…TV-138).
 
-The vectors run on profile `ms2000-seq`, where SEQUENCER sits beside ARRAY (without a program it
-leaves `@` to ARRAY, MS-85); TV-137 runs on `ms2000-all-modules`, whose LCD shows ARRAY's own
-segment."""
+These run on profile `ms2000-seq`, where SEQUENCER sits beside ARRAY (without a program it leaves
+`@` to ARRAY, MS-85)."""
 
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ def arr() -> Harness:
 
 @pytest.fixture
 def two_by_two(arr: Harness) -> Harness:
-    """The 2×2 array of TV-133…TV-138: 1 mm apart, 50 ms dwell."""
+    """The 2×2 array the vectors use: 1 mm apart, 50 ms dwell."""
     assert arr.cmd("AR X=2 Y=2 Z=1 F=1") == ACK
     assert arr.cmd("RT Z=50") == ACK
     return arr
@@ -49,24 +49,6 @@ def run_out(h: Harness, seconds: float = 10.0, step: float = 0.005) -> str:
     return seen
 
 
-def test_tv_129_grid_defaults_and_range_ms_array_1(arr: Harness) -> None:
-    """TV-129 (MS-ARRAY-1): a 96-well plate by default; 0 columns is out of range."""
-    assert arr.cmd("AR X? Y? Z? F? T?") == b":A X=12 Y=8 Z=9.000000 F=-9.000000 T=0.000000\r\n"
-    assert arr.cmd("AR X=0") == b":N-4\r\n"
-    assert arr.cmd("AR Y=1001") == b":N-4\r\n"
-    assert arr.cmd("AR X=2.5") == b":N-4\r\n"
-
-
-def test_tv_130_aij_moves_to_a_cell_ms_array_4_ms_array_3(arr: Harness) -> None:
-    """TV-130 (MS-ARRAY-4, MS-ARRAY-3): cell (2,3) is 9 mm along X and twice −9 mm along Y."""
-    assert arr.cmd("AIJ X=2 Y=3") == ACK
-    assert arr.cmd("/") == b"B\r\n"
-    arr.idle()
-    assert arr.cmd("W X Y") == b":A 90000 -180000\r\n"
-    assert arr.cmd("AIJ X? Y?") == b":A X=2 Y=3\r\n"
-    assert arr.cmd("AIJ X=13 Y=1") == b":N-4\r\n"
-
-
 def test_aij_missing_item_keeps_the_last_one_ms_array_4(arr: Harness) -> None:
     """MS-ARRAY-4: a missing item keeps the last i or j (1,1 initially)."""
     arr.cmd("AIJ Y=2")
@@ -77,45 +59,12 @@ def test_aij_missing_item_keeps_the_last_one_ms_array_4(arr: Harness) -> None:
     assert arr.cmd("W X Y") == b":A 180000 -90000\r\n"
 
 
-def test_tv_131_ahome_sets_cell_one_one_ms_array_2(arr: Harness) -> None:
-    """TV-131 (MS-ARRAY-2): `AH X= Y=` in mm; bare `AH` takes the current XY position."""
-    assert arr.cmd("AH X=1 Y=2") == ACK
-    assert arr.cmd("AH X?") == b":A X=1.000000\r\n"
-    arr.cmd("AIJ X=1 Y=1")
-    arr.idle()
-    assert arr.cmd("W X Y") == b":A 10000 20000\r\n"
-    arr.cmd("M X=5000 Y=5000")
-    arr.idle()
-    assert arr.cmd("AH") == ACK
-    assert arr.cmd("AH X? Y?") == b":A X=0.500000 Y=0.500000\r\n"
-
-
-def test_tv_132_tilt_rotates_the_grid_ms_array_3(arr: Harness) -> None:
-    """TV-132 (MS-ARRAY-3): at 90° the columns run along +Y."""
-    assert arr.cmd("AR T=90") == ACK
-    arr.cmd("AIJ X=2 Y=1")
-    arr.idle()
-    assert arr.cmd("W X Y") == b":A 0 90000\r\n"
-
-
 def test_sn_swaps_the_axes_of_columns_and_rows_ms_array_3(arr: Harness) -> None:
     """MS-ARRAY-3: with `SN X=2 Y=1` the columns run along Y and the rows along X."""
     assert arr.cmd("SN X=2 Y=1") == ACK
     arr.cmd("AIJ X=2 Y=3")
     arr.idle()
     assert arr.cmd("W X Y") == b":A -180000 90000\r\n"
-
-
-def test_tv_133_self_scan_serpentine_and_states_ms_array_5_ms_array_7(two_by_two: Harness) -> None:
-    """TV-133 (MS-ARRAY-5, MS-ARRAY-7): serpentine by default in an ARRAY-only build; moving,
-    dwelling `RT Z` after each arrival, C after the last, then idle."""
-    assert two_by_two.cmd("SN F?") == b":A F=1\r\n"
-    two_by_two.cmd("M X=5000")
-    two_by_two.idle()
-    assert two_by_two.cmd("AR") == ACK
-    seen = run_out(two_by_two)
-    assert arrivals(two_by_two) == [(1, 1), (2, 1), (2, 2), (1, 2)]
-    assert seen == "MDMDMDMCI"
 
 
 def test_self_scan_dwell_is_rt_z_ms_array_5(two_by_two: Harness) -> None:
@@ -129,14 +78,6 @@ def test_self_scan_dwell_is_rt_z_ms_array_5(two_by_two: Harness) -> None:
     assert two_by_two.get("array")["state"] == "I"
     for earlier, later in itertools.pairwise(arrived):
         assert later - earlier > 0.4
-
-
-def test_tv_134_raster_order_ms_array_5_ms_scan_1(two_by_two: Harness) -> None:
-    """TV-134 (MS-ARRAY-5, MS-SCAN-1): `SN F=0` visits each row in the same direction."""
-    assert two_by_two.cmd("SN F=0") == ACK
-    two_by_two.cmd("AR")
-    run_out(two_by_two)
-    assert arrivals(two_by_two) == [(1, 1), (2, 1), (1, 2), (2, 2)]
 
 
 def test_bare_ar_stops_a_self_scan_and_halt_too_ms_array_5(two_by_two: Harness) -> None:
@@ -180,23 +121,6 @@ def test_at_button_and_be_f7_start_a_self_scan_ms_array_5(two_by_two: Harness) -
     assert two_by_two.get("array")["running"] is None
 
 
-def test_tv_135_commanded_stepping_ms_array_6(two_by_two: Harness) -> None:
-    """TV-135 (MS-ARRAY-6): `RM X=1` goes to (1,1); each IN0 pulse in mode 7 to the next cell; after
-    the last one further pulses do nothing."""
-    assert two_by_two.cmd("TTL X=7") == ACK
-    assert two_by_two.cmd("RM X=1") == ACK
-    two_by_two.idle()
-    assert arrivals(two_by_two) == [(1, 1)]
-    for _ in range(3):
-        two_by_two.input("ttl_in0", pulse_ms=1)
-        two_by_two.idle()
-    assert arrivals(two_by_two) == [(2, 1), (2, 2), (1, 2)]
-    two_by_two.input("ttl_in0", pulse_ms=1)
-    assert two_by_two.cmd("/") == b"N\r\n"
-    two_by_two.settle()
-    assert arrivals(two_by_two) == []
-
-
 def test_stepping_ignores_triggers_while_moving_lower_case_ms_array_7(two_by_two: Harness) -> None:
     """MS-ARRAY-7: while a stepping move runs IN0 is ignored and the state shows in lower case;
     a bare `RM` is a trigger too (MS-RB-5)."""
@@ -211,45 +135,9 @@ def test_stepping_ignores_triggers_while_moving_lower_case_ms_array_7(two_by_two
     assert arrivals(two_by_two) == [(1, 1), (2, 1)]
 
 
-@pytest.mark.parametrize(("knob", "moves"), [(True, True), (False, False)])
-def test_tv_136_rm_x0_starts_with_knob_ms_array_6(knob: bool, moves: bool) -> None:
-    """TV-136 (MS-ARRAY-6): `RM X=0` also starts commanded stepping in IN0 mode 7 only with knob
-    `array_start_on_rm_x0`; otherwise it just clears the ring buffer."""
-    h = seq(array_start_on_rm_x0=knob)
-    h.cmd("AR X=2 Y=2 Z=1 F=1")
-    h.cmd("AIJ X=2 Y=2")
-    h.idle()
-    h.take_events()
-    h.cmd("TTL X=7")
-    assert h.cmd("RM X=0") == ACK
-    h.settle()
-    assert arrivals(h) == ([(1, 1)] if moves else [])
-
-
 def test_rm_x1_without_array_is_out_of_range_ms_rb_4(ms: Harness) -> None:
     """MS-RB-4: `RM X=1` needs ARRAY MODULE."""
     assert ms.cmd("RM X=1") == b":N-4\r\n"
-
-
-def test_tv_137_observable_and_lcd_ms_array_7() -> None:
-    """TV-137 (MS-ARRAY-7) on ms2000-all-modules (ARRAY without SEQUENCER): `A 3,B`, rows as
-    letters for 8 rows."""
-    h = Harness("ms2000-all-modules")
-    h.cmd("AIJ X=3 Y=2")
-    h.idle()
-    assert h.get("array") == {"state": "A", "i": 3, "j": 2, "running": None}
-    assert "A 3,B" in h.get("lcd")[1]
-    h.cmd("AR Y=5")
-    assert "A 3,2" in h.get("lcd")[1]
-
-
-def test_tv_138_out0_pulse_per_arrival_ms_array_8(two_by_two: Harness) -> None:
-    """TV-138 (MS-ARRAY-8): OUT0 mode 2 pulses once per array arrival."""
-    two_by_two.cmd("TTL Y=2")
-    two_by_two.cmd("AR")
-    run_out(two_by_two)
-    rising = [e for e in two_by_two.take_events("ttl_out0") if e["level"] == 1]
-    assert len(rising) == 4
 
 
 def test_cell_beyond_a_limit_is_error_ms_array_7(arr: Harness) -> None:

@@ -1,4 +1,5 @@
-"""Low-level binary mode (§8): TV-122…TV-128."""
+"""Low-level binary mode (§8) on the model, beyond the test vectors, which run in
+tests/conformance/ms2000 (TV-122…TV-128)."""
 
 from __future__ import annotations
 
@@ -9,39 +10,10 @@ from tests.unit.ms2000.conftest import Harness
 
 @pytest.fixture
 def low(ms: Harness) -> Harness:
-    """TV-122 set-up: X at -12345 units, then low-level mode."""
+    """X at -12345 units (as the vectors set it up), then low-level mode."""
     assert ms.cmd("H X=-12345") == b":A\r\n"
     assert ms.send(b"\xff\x42") == b""
     return ms
-
-
-def test_tv_122_position_read_ms119_ms120_ms121(low: Harness) -> None:
-    assert low.send(b"\x18\x61\x03\x3a") == b"\xc7\xcf\xff"
-
-
-def test_tv_123_busy_status_position_and_status_ms121_ms122(low: Harness) -> None:
-    assert low.send(b"\x18\x3f\x00\x3a") == b"b"
-    assert low.send(b"\x18\x7e\x01\x3a") == b"\x0a"
-    assert low.send(b"\x18\x6c\x03\x3a") == b"\xc7\xcf\xff\x0a"
-
-
-def test_tv_124_to_tv126_moves_increment_and_return_ms121_ms120_ms123_ms124_ms119(low: Harness) -> None:
-    assert low.send(b"\x18\x54\x03\xa0\x86\x01\x3a") == b""
-    assert low.send(b"\x18\x3f\x00\x3a") == b"B"
-    low.wait(3.0)
-    assert low.send(b"\x18\x61\x03\x3a") == b"\xa0\x86\x01"
-    # TV-125
-    assert low.send(b"\x18\x44\x03\xe8\x03\x00\x3a") == b""
-    assert low.send(b"\x18\x64\x03\x3a") == b"\xe8\x03\x00"
-    assert low.send(b"\x18\x2b\x00\x3a") == b""
-    low.wait(1.0)
-    assert low.send(b"\x18\x61\x03\x3a") == b"\x88\x8a\x01"
-    # TV-126
-    assert low.send(b"\x18\x4b\x3a") == b""
-    assert low.send(b"\x20\x61\x03\x3a") == b""
-    assert low.send(b"V\r") == b""
-    assert low.send(b"\xff\x41") == b""
-    assert low.cmd("RS X") == b":A 2\r\n"
 
 
 def test_low_level_byte_by_byte_ms120(low: Harness) -> None:
@@ -62,19 +34,6 @@ def test_low_level_status_bit1_always_set_ms122(low: Harness) -> None:
     low.send(b"\xff\x41")
     low.cmd("MC X-")
     assert low.send(b"\xff\x42\x18\x7e\x01\x3a") == b"\x0a"
-
-
-def test_tv_127_where_resolution_sequences_ms119(ms: Harness) -> None:
-    ms.cmd("H X=-12345")
-    assert ms.send(b"\xff\x48") == b""
-    assert ms.cmd("W X") == b":A -12345.0\r\n"
-    assert ms.send(b"\xff\x54") == b""
-    assert ms.cmd("W X") == b":A -12345\r\n"
-
-
-def test_tv_128_without_ll_module_ff42_discarded_ms119(make: type[Harness]) -> None:
-    h = make(overrides={"modules": ["RING BUFFER", "INO_INT", "LED DIMMER"]})
-    assert h.send(b"\xff\x42V\r") == b":A Version: USB-9.2k \r\n"
 
 
 def test_control_sequences_anywhere_and_unknown_ones_ms119(ms: Harness) -> None:

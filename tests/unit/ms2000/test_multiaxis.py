@@ -1,7 +1,7 @@
-"""MULTIAXIS MOVES (§9.13) on the manual clock: TV-208, TV-209 and the rest of MS-MULTI-1,
-MS-MULTI-2.
+"""MULTIAXIS MOVES (§9.13) on the manual clock: the rest of MS-MULTI-1 and MS-MULTI-2 beyond the test
+vectors, which run in tests/conformance/ms2000 (TV-208, TV-209).
 
-The vectors run on the test-only profile `ms2000-all-modules` (X and Y linear).
+These run on the test-only profile `ms2000-all-modules` (X and Y linear).
 """
 
 from __future__ import annotations
@@ -28,34 +28,6 @@ def xyz(h: Harness) -> tuple[float, float, float]:
 
 def state(h: Harness) -> str:
     return str(h.get("multi")["state"])
-
-
-def test_tv_208_parameters_and_idle_state(multi: Harness) -> None:
-    """TV-208 (MS-MULTI-1, MS-MULTI-2)."""
-    assert multi.cmd("MM X=1 Y=0.5 F=64") == ACK
-    assert multi.cmd("MM X? Y? F?") == b":A X=1.000000 Y=0.500000 F=64\r\n"
-    assert multi.cmd("MM R?") == b":A R=73.000000\r\n"
-    assert multi.cmd("MM F=256") == b":N-4\r\n"
-    assert multi.cmd("MM X=-1") == b":N-4\r\n"
-
-
-def test_tv_209_running_refuses_moves_and_stops(multi: Harness) -> None:
-    """TV-209 (MS-MULTI-2, MS-MULTI-1): running, status `T`, `M X` refused, `R=80` stops along the
-    path, idle later; other codes out of range."""
-    multi.cmd("MM X=1 Y=0.5 F=64")
-    assert multi.cmd("MM") == ACK
-    assert multi.cmd("MM R?") == b":A R=67.000000\r\n"
-    assert multi.cmd("RS X+") == b":A T\r\n"
-    assert multi.cmd("/") == b"B\r\n"
-    assert multi.cmd("M X=0") == b":N-5\r\n"
-    assert multi.cmd("R Y=10") == b":N-5\r\n"
-    assert multi.cmd("M Z=10") == ACK  # not one of the pattern's axes
-    assert multi.cmd("MM R=80") == ACK
-    assert multi.cmd("MM R?") == b":A R=80.000000\r\n"
-    multi.idle()
-    assert multi.cmd("MM R?") == b":A R=73.000000\r\n"
-    assert multi.cmd("MM R=65") == b":N-4\r\n"
-    assert multi.cmd("MM R=82") == b":N-4\r\n"  # restart: fast circles only
 
 
 def test_circle_is_followed_over_time_ms_multi_1(multi: Harness) -> None:

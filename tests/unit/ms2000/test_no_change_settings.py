@@ -1,4 +1,4 @@
-"""NO CHANGE SETTINGS (§7, MS-109): TV-91, TV-92 and write protection."""
+"""NO CHANGE SETTINGS (§7, MS-109): write protection beyond TV-91 and TV-92 (tests/conformance/ms2000)."""
 
 from __future__ import annotations
 
@@ -19,20 +19,6 @@ REFUSED = b":N-4\r\n"
 @pytest.fixture
 def ms(make: Callable[..., Harness]) -> Harness:
     return make(ALL_MODULES)
-
-
-def test_tv_091_vb_t_needs_the_module(make: Callable[..., Harness]) -> None:
-    """TV-91 (MS-109): without NO CHANGE SETTINGS `VB T` is a letter VB does not define."""
-    assert make().cmd("VB T=1027") == b":N-2\r\n"
-
-
-def test_tv_092_protect_and_release_speed(ms: Harness) -> None:
-    """TV-92 (MS-109): `VB T=1027` protects SPEED (number 27), `VB T=27` releases it."""
-    assert ms.cmd("VB T=1027") == ACK
-    assert ms.cmd("S X=1") == REFUSED
-    assert ms.cmd("VB T=27") == ACK
-    assert ms.cmd("S X=1") == ACK
-    assert ms.cmd("S X?") == b":A X=1.000000\r\n"
 
 
 def test_protected_commands_still_answer_queries(ms: Harness) -> None:

@@ -1,5 +1,6 @@
-"""Non-volatile memory, reset and power (MS-110…MS-113, MS-111): TV-105…TV-110, emulator restarts,
-the NvStore file format, corrupt files, failing disks and unusable stored values."""
+"""Non-volatile memory, reset and power (MS-110…MS-113, MS-111) on the model: emulator restarts, the
+NvStore file format, corrupt files, failing disks and unusable stored values. The vectors TV-105…TV-110
+run in tests/conformance/ms2000."""
 
 from __future__ import annotations
 
@@ -29,17 +30,7 @@ def stored(tmp_path: Path) -> Harness:
     return Harness(state_dir=tmp_path)
 
 
-def test_tv_105_saved_settings_survive_restart_ms111(stored: Harness) -> None:
-    assert stored.cmd("S X=3.3") == ACK
-    assert stored.cmd("SS Z") == ACK
-    stored.restart()
-    assert stored.cmd("S X?") == b":A X=3.300000\r\n"
-    assert stored.cmd("S Y=2") == ACK
-    stored.input("power_cycle")
-    assert stored.cmd("S Y?") == b":A Y=5.145600\r\n"
-
-
-def test_tv_105_without_state_dir_power_cycle_still_uses_flash_ms111(ms: Harness) -> None:
+def test_saved_settings_come_back_at_power_cycle_without_state_dir_ms111(ms: Harness) -> None:
     ms.cmd("S X=3.3")
     ms.cmd("SS Z")
     ms.cmd("S X=1")
@@ -54,37 +45,6 @@ def test_nothing_persists_without_state_dir(ms: Harness) -> None:
     assert ms.cmd("S X?") == b":A X=5.145600\r\n"
 
 
-def test_tv_106_soft_limits_remembered_automatically_ms111(ms: Harness) -> None:
-    assert ms.cmd("SL X=-50") == ACK
-    ms.input("power_cycle")
-    assert ms.cmd("SL X?") == b":A X=-50.000\r\n"
-
-
-def test_tv_107_factory_reset_scheduled_and_cancelled_ms110_ms112(stored: Harness) -> None:
-    stored.cmd("S X=3.3")
-    stored.cmd("SS Z")
-    assert stored.cmd("SS X") == ACK
-    stored.input("power_cycle")
-    assert stored.cmd("S X?") == b":A X=5.145600\r\n"
-    stored.input("power_cycle")
-    assert stored.cmd("S X?") == b":A X=5.145600\r\n"
-    stored.cmd("S X=3.3")
-    stored.cmd("SS Z")
-    assert stored.cmd("SS X") == ACK
-    assert stored.cmd("SS Y") == ACK
-    stored.input("power_cycle")
-    assert stored.cmd("S X?") == b":A X=3.300000\r\n"
-
-
-def test_tv_108_reset_zeroes_positions_ms112(ms: Harness) -> None:
-    ms.cmd("M X=1000")
-    ms.idle()
-    ms.cmd("BU Z+")
-    assert ms.cmd("~") == ACK
-    assert ms.cmd("W X Y Z") == b":A 0 0 0\r\n"
-    assert ms.cmd("BU Z?") == b":A 0\r\n"
-
-
 def test_reset_restores_saved_settings_keeps_limits_in_place_ms112(ms: Harness) -> None:
     ms.cmd("M X=10000")
     ms.idle()
@@ -94,26 +54,6 @@ def test_reset_restores_saved_settings_keeps_limits_in_place_ms112(ms: Harness) 
     assert ms.cmd("S X?") == b":A X=5.145600\r\n"
     assert ms.cmd("W X") == b":A 0\r\n"
     assert ms.cmd("SU X?") == b":A X=109.000\r\n"
-
-
-def test_tv_109_positions_saved_at_power_off_unless_inhibited_ms113_ms112(ms: Harness) -> None:
-    ms.cmd("M X=1000")
-    ms.idle()
-    ms.input("power_cycle")
-    assert ms.cmd("W X") == b":A 1000\r\n"
-    assert ms.cmd("SP X=1") == ACK
-    assert ms.cmd("SP X?") == b":A X=1\r\n"
-    ms.input("power_cycle")
-    assert ms.cmd("W X") == b":A 0\r\n"
-    assert ms.get("axes")["X"]["machine_counts"] == 4540
-
-
-def test_tv_110_savepos_bare_goes_silent_ms113_ms18(ms: Harness) -> None:
-    assert ms.cmd("SP") == ACK
-    assert ms.cmd("V") == b""
-    assert ms.send(b"\xffB\x18\x61\x03\x3a") == b""
-    ms.input("power_cycle")
-    assert ms.cmd("V") == b":A Version: USB-9.2k \r\n"
 
 
 def test_restart_after_kill_keeps_position_ms111(stored: Harness) -> None:

@@ -1,4 +1,5 @@
-"""PLANAR CORRECTION (§9.9) on the manual clock: TV-187…TV-192 and the rest of MS-PC-1…MS-PC-5.
+"""PLANAR CORRECTION (§9.9) on the manual clock: the rest of MS-PC-1…MS-PC-5 beyond the test vectors,
+which run in tests/conformance/ms2000 (TV-187…TV-192).
 
 The build is profile `ms2000-seq` (X and Y on linear encoders at 100000 counts/mm).
 """
@@ -27,7 +28,7 @@ def seq() -> Harness:
 
 @pytest.fixture
 def plane(seq: Harness) -> Harness:
-    """TV-187's plane: points (0, 0, 0), (10, 0, 0), (0, 10, 0.01) mm; enabled at the third."""
+    """The vectors' plane: points (0, 0, 0), (10, 0, 0), (0, 10, 0.01) mm; enabled at the third."""
     run(seq, "CCB Z=1", "M X=100000")
     run(seq, "CCB Z=2", "M X=0 Y=100000 Z=100")
     run(seq, "CCB Z=3", "CCB Z=4")
@@ -36,14 +37,6 @@ def plane(seq: Harness) -> Harness:
 
 def z_counts(h: Harness) -> int:
     return int(h.get("axes")["Z"]["machine_counts"])
-
-
-def test_tv_187_z_follows_the_plane(plane: Harness) -> None:
-    """TV-187 (MS-PC-1, MS-PC-2): `W Z` stays in plane coordinates, `CCB Z=6` is physical."""
-    assert plane.cmd("W Z") == b":A 0\r\n"
-    run(plane, "M Z=0", "M Y=50000")
-    assert plane.cmd("W Z") == b":A 0\r\n"
-    assert plane.cmd("CCB Z=6") == b":A 50\r\n"
 
 
 def test_z_follows_along_the_way_ms_pc_2(plane: Harness) -> None:
@@ -89,17 +82,6 @@ def test_info_reports_the_physical_target_ms_pc_2(plane: Harness) -> None:
     assert "enc target   :       200" in report
 
 
-def test_tv_188_errors(seq: Harness) -> None:
-    """TV-188 (MS-PC-1)."""
-    assert seq.cmd("CCB Z=7") == ACK
-    assert seq.cmd("CCB Z=1") == ACK
-    assert seq.cmd("CCB Z=2") == ACK
-    assert seq.cmd("CCB Z=4") == b":N-5\r\n"
-    assert seq.cmd("CCB Z=8") == b":N-4\r\n"
-    assert seq.cmd("CCB") == b":N-3\r\n"
-    assert seq.cmd("CCB X=1") == b":N-2\r\n"
-
-
 def test_collinear_points_fit_no_plane_ms_pc_1(seq: Harness) -> None:
     """MS-PC-1: three points on one line in XY are refused."""
     run(seq, "CCB Z=1", "M X=10000")
@@ -108,55 +90,6 @@ def test_collinear_points_fit_no_plane_ms_pc_1(seq: Harness) -> None:
     assert seq.cmd("CCB Z=4") == b":N-5\r\n"
     assert fit([(0, 0, 0), (1, 1, 0), (2, 2, 1)]) is None
     assert fit([(0, 0, 0), (1, 0, 0.5), (0, 2, 1)]) == (0.5, 0.5)
-
-
-def test_tv_189_state_characters(seq: Harness) -> None:
-    """TV-189 (MS-PC-3), also on the LCD (§9.0)."""
-    assert seq.get("planar")["state"] == "1"
-    seq.cmd("CCB Z=1")
-    assert seq.get("planar")["state"] == "2"
-    run(seq, "M X=100000")
-    seq.cmd("CCB Z=2")
-    assert seq.get("planar")["state"] == "3"
-    run(seq, "M X=0 Y=100000")
-    seq.cmd("CCB Z=3")
-    assert seq.get("planar")["state"] == "G"
-    seq.cmd("CCB Z=4")
-    assert seq.get("planar")["state"] == "Z"
-    assert seq.get("lcd")[1].startswith("Z I ")  # first in SEQUENCER's segment (MS-SEQ-8)
-    seq.cmd("CCB Z=5")
-    assert seq.get("planar") | {"points": None, "correction_counts": None} == {
-        "state": "G",
-        "a": 0.0,
-        "b": 0.0,
-        "enabled": False,
-        "points": None,
-        "correction_counts": None,
-    }
-
-
-def test_tv_190_buttons_select_and_disable(seq: Harness) -> None:
-    """TV-190 (MS-PC-4): joystick held 3 s at three points enables; beside RING BUFFER home needs
-    6 s (3 s is RING BUFFER's clear); home again clears the points."""
-    for move in ("M X=0", "M X=100000", "M X=0 Y=100000"):
-        run(seq, move)
-        seq.input("button", name="joystick", ms=3000)
-        seq.wait(3.0)
-    assert seq.get("planar")["state"] == "Z"
-    seq.input("button", name="home", ms=3000)
-    seq.wait(3.0)
-    assert seq.get("planar")["state"] == "Z"
-    seq.input("button", name="home", ms=6000)
-    seq.wait(6.0)
-    assert seq.get("planar")["state"] == "G"
-    seq.input("button", name="joystick", ms=3000)
-    seq.wait(3.0)
-    assert seq.get("planar")["state"] == "Z"
-    seq.input("button", name="home", ms=6000)
-    seq.wait(6.0)
-    seq.input("button", name="home", ms=6000)
-    seq.wait(6.0)
-    assert seq.get("planar")["state"] == "1"
 
 
 def test_home_needs_3_s_without_ring_buffer_ms_pc_4() -> None:
@@ -170,19 +103,6 @@ def test_home_needs_3_s_without_ring_buffer_ms_pc_4() -> None:
     assert h.get("planar")["state"] == "G"
 
 
-def test_tv_191_saved_plane_survives_power_cycle(plane: Harness) -> None:
-    """TV-191 (MS-PC-5): tilt and enabled flag come back; Z keeps following, `W Z` as before."""
-    run(plane, "M Y=50000")
-    before = plane.get("planar")
-    physical = z_counts(plane)
-    assert plane.cmd("SS Z") == ACK
-    plane.input("power_cycle")
-    after = plane.get("planar")
-    assert (after["enabled"], after["a"], after["b"]) == (True, before["a"], before["b"])
-    assert z_counts(plane) == physical
-    assert plane.cmd("W Z") == b":A 0\r\n"
-
-
 def test_unsaved_plane_is_gone_after_reset_ms_pc_5(plane: Harness) -> None:
     """MS-PC-5: without `SS Z` a reset brings back the factory state: no correction, so Z's
     physical position is its commanded one again."""
@@ -191,17 +111,6 @@ def test_unsaved_plane_is_gone_after_reset_ms_pc_5(plane: Harness) -> None:
     axes = plane.get("axes")
     assert axes["Z"]["machine_counts"] == axes["Z"]["target_counts"]
     assert plane.dev.axes[2].follow is None
-
-
-def test_tv_192_zero_rereferences_the_plane(plane: Harness) -> None:
-    """TV-192 (MS-PC-2), after TV-187 (Y at 5 mm)."""
-    run(plane, "M Z=0", "M Y=50000")
-    physical = z_counts(plane)
-    assert plane.cmd("Z") == ACK
-    assert z_counts(plane) == physical
-    assert plane.cmd("CCB Z=6") == b":A 0\r\n"
-    run(plane, "M Y=50000")
-    assert plane.cmd("CCB Z=6") == b":A 50\r\n"
 
 
 def test_here_changes_the_offset_not_the_tilt_ms_pc_2(plane: Harness) -> None:

@@ -1,4 +1,5 @@
-"""SCAN MODULE and ENC_INT (§9.3) on the manual clock: TV-146…TV-153 and the rules around them."""
+"""SCAN MODULE and ENC_INT (§9.3) on the manual clock: the rules around the test vectors, which run in
+tests/conformance/ms2000 (TV-146…TV-153)."""
 
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ def scan() -> Harness:
 
 @pytest.fixture
 def area(scan: Harness) -> Harness:
-    """TV-149's setup: NR 0→1 mm divide 24, NV 0→0.1 mm in 3 lines."""
+    """The vectors' scan area: NR 0→1 mm divide 24, NV 0→0.1 mm in 3 lines."""
     for command in ("NR X=0 Y=1 Z=24", "NV X=0 Y=0.1 Z=3"):
         assert scan.cmd(command) == ACK
     return scan
@@ -42,54 +43,10 @@ def scan_events(h: Harness) -> list[tuple[str, int, int | None]]:
     return [(e["ev"], e["line"], e.get("count")) for e in h.take_events() if e["ev"].startswith("scan_")]
 
 
-def test_tv_146_factory_roles_ms_scan_1(scan: Harness) -> None:
-    """TV-146 (MS-SCAN-1): X fast, Y slow, raster in a SCAN build; Z answers on an XY build."""
-    assert scan.cmd("SN X? Y? Z? F?") == b":A X=1 Y=2 Z=0 F=0\r\n"
-
-
-def test_tv_147_scanr_pixels_and_ranges_ms_scan_2(scan: Harness) -> None:
-    """TV-147 (MS-SCAN-2): 1 mm at divide 24 is 1891 pixels; F=100 sets the stop; divide ≤ 32767."""
-    assert scan.cmd("NR X=0.0 Y=1.0 Z=24") == ACK
-    assert scan.cmd("NR F?") == b":A F=1891\r\n"
-    assert scan.cmd("NR X=0 Z=24 F=100") == ACK
-    assert scan.cmd("NR Y?") == b":A Y=0.052868\r\n"
-    assert scan.cmd("NR Z=40000") == b":N-4\r\n"
-    assert scan.cmd("NR Z=7") == b":N-4\r\n"
-    assert scan.cmd("NR F=0") == b":N-4\r\n"
-
-
 def test_divide_acts_as_a_multiple_of_four_ms_scan_2(scan: Harness) -> None:
     """MS-SCAN-2: divide 27 counts pixels as 24 but reads back as set."""
     scan.cmd("NR X=0 Y=1 Z=27")
     assert scan.cmd("NR Z? F?") == b":A Z=27 F=1891\r\n"
-
-
-def test_tv_148_scanv_ms_scan_3(scan: Harness) -> None:
-    """TV-148 (MS-SCAN-3): lines and the overshoot factor (default 1)."""
-    assert scan.cmd("NV X=0 Y=0.1 Z=3") == ACK
-    assert scan.cmd("NV Z? F?") == b":A Z=3 F=1.000000\r\n"
-    assert scan.cmd("NV X? Y?") == b":A X=0.000000 Y=0.100000\r\n"
-
-
-def test_tv_149_raster_scan_with_pixel_counting_ms_scan_4(area: Harness) -> None:
-    """TV-149 (MS-SCAN-4): busy throughout; one SYNC and 1891 pixels per line; the fast axis ends at
-    its start, the slow one on the last line."""
-    assert area.cmd("TTL X=1") == ACK
-    area.cmd("M Y=-500")  # so that the first slow-axis move takes time
-    area.idle()
-    assert area.cmd("SN") == ACK
-    assert area.cmd("/") == b"B\r\n"
-    assert states_until_idle(area) == "abcgacgacgI"
-    assert scan_events(area) == [
-        ("scan_sync", 1, None),
-        ("scan_pixels", 1, 1891),
-        ("scan_sync", 2, None),
-        ("scan_pixels", 2, 1891),
-        ("scan_sync", 3, None),
-        ("scan_pixels", 3, 1891),
-    ]
-    assert area.cmd("W X Y") == b":A 0 1000\r\n"
-    assert area.cmd("DU Y") == b":A\r\n"
 
 
 def test_sweep_timing_overshoot_and_retrace_ms_scan_4(area: Harness) -> None:
@@ -128,31 +85,6 @@ def test_serpentine_alternates_direction_ms_scan_4_ms_scan_7(area: Harness) -> N
     assert area.cmd("W X Y") == b":A 0 1000\r\n"
 
 
-def test_tv_150_stop_logs_86_ms_scan_6_ms_scan_4_ms_scan_7(area: Harness) -> None:
-    """TV-150 (MS-SCAN-6, MS-SCAN-4, MS-SCAN-7): `SN` during a scan aborts it (state P while the
-    moving axis ramps down) and logs 86 only."""
-    area.cmd("TTL X=1")
-    area.cmd("SN")
-    area.wait(0.4)
-    assert area.get("scan")["state"] in "abcg"
-    assert area.cmd("SN") == ACK
-    assert area.get("scan")["state"] == "P"
-    assert area.get("lcd")[1].startswith("RB 0/0 P")
-    area.idle()
-    assert area.get("scan")["state"] == "I"
-    assert area.cmd("DU Y") == b"86\r:A\r\n"
-
-
-def test_tv_151_fast_axis_off_the_jumper_logs_85_per_line_ms_scan_6(area: Harness) -> None:
-    """TV-151 (MS-SCAN-6): with Y fast and the encoder jumpered to X the counter sees no pulses."""
-    area.cmd("SN X=2 Y=1")
-    area.cmd("TTL X=1")
-    assert area.cmd("SN") == ACK
-    area.idle()
-    assert area.cmd("DU Y") == b"85\r85\r85\r:A\r\n"
-    assert [count for ev, _, count in scan_events(area)] == [0, 0, 0]
-
-
 def test_dropped_pulses_log_85_ms_scan_6(area: Harness) -> None:
     """MS-SCAN-6: `scan_drop_pulses` removes pulses from the next line; the scan goes on."""
     area.cmd("TTL X=1")
@@ -169,28 +101,6 @@ def test_no_pixel_pulses_without_the_encoder_interrupt_ms_scan_4(area: Harness) 
     area.idle()
     assert [ev for ev, _, _ in scan_events(area)] == ["scan_sync"] * 3
     assert area.cmd("DU Y") == b":A\r\n"
-
-
-def test_tv_152_at_button_starts_and_aborts_ms_scan_5(area: Harness) -> None:
-    """TV-152 (MS-SCAN-5): `@` held 1.5 s starts a scan on release; a momentary press aborts it."""
-    area.input("button", name="at", ms=1500)
-    area.wait(1.4)
-    assert area.get("scan")["state"] == "I"
-    area.wait(0.2)
-    assert area.get("scan")["state"] != "I"
-    area.input("button", name="at", ms=200)
-    area.wait(0.25)
-    assert area.get("scan")["state"] == "P"
-    area.idle()
-    assert area.cmd("DU Y") == b"86\r:A\r\n"
-
-
-def test_tv_153_start_needs_one_fast_axis_ms_scan_1(scan: Harness) -> None:
-    """TV-153 (MS-SCAN-1): without a fast axis bare `SN` fails with `:N-5`."""
-    assert scan.cmd("SN X=0 Y=0") == ACK
-    assert scan.cmd("SN") == b":N-5\r\n"
-    assert scan.cmd("SN X=1 Y=1") == ACK
-    assert scan.cmd("SN") == b":N-5\r\n"
 
 
 def test_halt_ends_a_scan_at_once_ms_scan_6(area: Harness) -> None:

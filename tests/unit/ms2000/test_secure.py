@@ -1,4 +1,5 @@
-"""SOL_LK and U_SERVO_LK (§9.17): TV-216, TV-217, OUT0 mode 9, the auto-lock timer."""
+"""SOL_LK and U_SERVO_LK (§9.17): OUT0 mode 9, the auto-lock timer and the rest of MS-SECURE-1 beyond
+TV-216 and TV-217 (tests/conformance/ms2000)."""
 
 from __future__ import annotations
 
@@ -16,14 +17,6 @@ ALL_MODULES = "ms2000-all-modules"
 @pytest.fixture
 def ms(make: Callable[..., Harness]) -> Harness:
     return make(ALL_MODULES)
-
-
-def test_tv_216_solenoid_unlock(ms: Harness) -> None:
-    """TV-216 (MS-SECURE-1): bare SECURE `:N-3`; `X=1` unlocks; queries reply value first."""
-    assert ms.cmd("SECURE") == b":N-3\r\n"
-    assert ms.cmd("SECURE X=1") == ACK
-    assert ms.cmd("SECURE X?") == b"X=1 :A\r\n"
-    assert ms.get("secure") == {"locked": False, "position": 1.0}
 
 
 def test_solenoid_settings_and_ranges(ms: Harness) -> None:
@@ -74,15 +67,6 @@ def test_lcd_segment_and_reset(make: Callable[..., Harness]) -> None:
     assert "OPN" in ms.get("lcd")[1]
     ms.cmd("~")
     assert ms.cmd("SECURE X?") == b"X=0 :A\r\n"
-
-
-def test_tv_217_micro_servo(make: Callable[..., Harness]) -> None:
-    """TV-217 (MS-SECURE-1): the servo insert takes a lever position, nothing else, no query."""
-    ms = make("ms2000-uservo")
-    assert ms.cmd("SECURE X=0.25") == ACK
-    assert ms.cmd("SECURE Y=") == b":N-2\r\n"
-    assert ms.cmd("SECURE X?") == b":N-2\r\n"
-    assert ms.get("secure") == {"locked": False, "position": 0.25}
 
 
 def test_micro_servo_range_and_output(make: Callable[..., Harness]) -> None:

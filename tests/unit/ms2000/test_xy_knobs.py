@@ -1,4 +1,5 @@
-"""XY KNOBS (§9.15): TV-211, the knob speeds and knob `knob_speeds_need_module`."""
+"""XY KNOBS (§9.15): the knob speeds and knob `knob_speeds_need_module`, beyond TV-211
+(tests/conformance/ms2000)."""
 
 from __future__ import annotations
 
@@ -17,14 +18,6 @@ ALL_MODULES = "ms2000-all-modules"
 @pytest.fixture
 def ms(make: Callable[..., Harness]) -> Harness:
     return make(ALL_MODULES)
-
-
-def test_tv_211_knob_speeds_and_a_turn(ms: Harness) -> None:
-    """TV-211 (MS-KNOB-1, MS-KNOB-2, MS-74): fast speed 1 × 4³ = 64; 100 counts × 6.4 µm."""
-    assert ms.cmd("JS F? T?") == b":A KNOB_SLOW=1.000000 KNOB_MULT=4\r\n"
-    ms.input("xy_knob", x_counts=100)
-    ms.wait(1)
-    assert ms.cmd("W X") == b":A 6400\r\n"
 
 
 def test_slow_mode_uses_the_slow_speed(ms: Harness) -> None:
