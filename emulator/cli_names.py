@@ -3,6 +3,7 @@
 Computed from the models, never listed by hand: each bundled profile's model is built (no state
 directory) and asked for its `control_names()`. Names are grouped per family: those every profile
 of the family has, then those only some profiles have (an MS2000 module's), with those profiles.
+The models are imported only when the help is shown: `stage-emu ctl list` loads this module too.
 """
 
 from __future__ import annotations
@@ -11,10 +12,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import click
-
-from emulator import registry
-from emulator.device import HostServices
-from emulator.profile import ProfileError, bundled_names, load_profile
 
 
 @dataclass(frozen=True)
@@ -29,6 +26,10 @@ class FamilyNames:
 
 def names_by_family(kind: str) -> list[FamilyNames]:
     """Each family's names of `kind`, from a model of each bundled profile."""
+    from emulator import registry
+    from emulator.device import HostServices
+    from emulator.profile import ProfileError, bundled_names, load_profile
+
     per_profile: dict[str, dict[str, set[str]]] = {}
     for name in bundled_names():
         try:

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
-from importlib import resources
 from pathlib import Path as FsPath
 from typing import Any, Generic, TypeVar
 
@@ -151,7 +150,11 @@ def line_section(
 
 
 def bundled_dir() -> FsPath:
-    return FsPath(str(resources.files("configs")))
+    """The bundled profiles' directory: the `configs` package's own (a directory on disk, as the
+    readers need; importlib.resources would add its imports to every daemon's start-up)."""
+    import configs
+
+    return FsPath(configs.__file__).parent
 
 
 def bundled_names() -> list[str]:
@@ -269,8 +272,11 @@ def _load_chain(
 def _check_family(child: Located, parent_device: Any, parent_ref: str) -> None:
     """A profile extends one of its own family; the mismatch is the child's (its `device:`)."""
     device = child.data.get("device")
-    known = registry.families()
-    both = [value for value in (device, parent_device) if isinstance(value, str) and value in known]
+    both = [
+        value
+        for value in (device, parent_device)
+        if isinstance(value, str) and registry.family(value) is not None
+    ]
     if len(both) == 2 and device != parent_device:
         message = f"{device!r} cannot extend {_quoted(parent_ref)}, a profile of the {parent_device} family"
         raise ProfileError(child.problem(("device",), f"{message}; extend one of the {device} family"))
@@ -314,6 +320,11 @@ def load_profile(
     )
 
 
+def _known_families() -> str:
+    """Every family's name, for a message (imports every family: only on a problem)."""
+    return ", ".join(sorted(registry.families())) or "none"
+
+
 def _check_top(located: Located) -> list[Problem]:
     """The problems of the keys every profile has (`spec`, `device`, `description`)."""
     data = located.data
@@ -325,11 +336,10 @@ def _check_top(located: Located) -> list[Problem]:
         message = f"{_quoted(spec)} is not a supported version (only {SPEC_VERSION})"
         problems.append(located.problem(("spec",), message))
     device = data.get("device")
-    known = ", ".join(sorted(registry.families())) or "none"
     if device is None:
-        problems.append(located.problem(("device",), f"is required; one of {known}"))
+        problems.append(located.problem(("device",), f"is required; one of {_known_families()}"))
     elif not isinstance(device, str) or registry.family(device) is None:
-        problems.append(located.problem(("device",), f"{_quoted(device)} is not one of {known}"))
+        problems.append(located.problem(("device",), f"{_quoted(device)} is not one of {_known_families()}"))
     description = data.get("description")
     if description is not None and not isinstance(description, str):
         problems.append(located.problem(("description",), "must be a string"))

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import importlib
-import pkgutil
+import importlib.util
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Generic, TypeVar
@@ -48,10 +48,22 @@ def _load_builtins() -> None:
     global _loaded
     if not _loaded:
         _loaded = True
+        import pkgutil
+
         import emulator.devices as package
 
         for info in pkgutil.iter_modules(package.__path__):
             importlib.import_module(f"{package.__name__}.{info.name}")
+
+
+def _load_builtin(name: str) -> None:
+    """Import the one module of `emulator.devices` named `name`, if there is one: a daemon serving
+    only MS2000s never imports the MP-285 model (start-up time)."""
+    if not name.isidentifier() or name.startswith("_"):
+        return
+    module = f"emulator.devices.{name}"
+    if importlib.util.find_spec(module) is not None:
+        importlib.import_module(module)
 
 
 def families() -> dict[str, Family[Any]]:
@@ -60,7 +72,10 @@ def families() -> dict[str, Family[Any]]:
 
 
 def family(name: str) -> Family[Any] | None:
-    _load_builtins()
+    if name not in _families and not _loaded:
+        _load_builtin(name)
+        if name not in _families:  # not a module's name: look in all of them, as families() does
+            _load_builtins()
     return _families.get(name)
 
 

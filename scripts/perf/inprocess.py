@@ -4,9 +4,9 @@ device runner (on a manual clock, through the in-process port of `stageemu://` U
 warm (the same exchange thousands of times in a row), so they are lower bounds of what the served
 daemon spends.
 
-Set beside the round-trip target they say what the target leaves room for: p50 ≤ 1.10 × floor
-allows 10 % of the floor's p50 for everything the emulator does beyond answering, event loop
-included.
+Set beside the round trips they say why those are references, not targets: a p50 of 1.10 × floor
+(the target they once carried) would allow 10 % of the floor's p50 for everything the emulator does
+beyond answering, event loop included, and the models alone take about that or more.
 """
 
 from __future__ import annotations
@@ -35,7 +35,7 @@ Case = tuple[str, str, bytes, bytes]
 
 def rows(cases: Sequence[Case], floors: dict[str, float], samples: int) -> list[Result]:
     """One row per (name, profile, request, reply): model and model + runner µs per exchange, and
-    the round-trip target's allowance (10 % of the floor's p50 in `floors`, by name)."""
+    10 % of the floor's p50 in `floors` (by name), what a 1.10 × floor target would allow."""
     results = []
     for name, profile, request, reply in cases:
         model = _timed(_model_exchange(profile, request, reply), samples)

@@ -11,7 +11,7 @@ import math
 from pathlib import Path
 
 from scripts.bench import table
-from scripts.perf import roundtrip, throughput, timescale, timing
+from scripts.perf import roundtrip, startup, throughput, timescale, timing
 from scripts.perf.common import Result
 
 
@@ -32,9 +32,11 @@ def test_round_trips_against_the_floor(tmp_path: Path) -> None:
         f"{cases[2]} answered in an asyncio loop",
         *in_process,
     ]
-    for reference in results[len(cases) :]:
-        assert not reference.checks and len(reference.info) == 2  # reference figures, no target
+    # every row a reference, no target: the call-count ceilings of `make test` guard round trips
+    assert all(not result.checks and len(result.info) == 2 for result in results)
+    assert [name for name, _ in results[0].info] == ["p50 ratio", "p99 ratio"]
     finite(results)
+    assert "FAIL" not in table(results)
     assert table(results).count("\n") == len(results) + 1
 
 
@@ -50,3 +52,14 @@ def test_realistic_timing_and_time_scale(tmp_path: Path) -> None:
     scaled = timescale.run(tmp_path / "scale", scale=100, seconds=1.0)
     finite([*timed, scaled])
     assert scaled.checks[1].passed, scaled.details  # the same position as at scale 1: not a timing
+
+
+def test_start_up(tmp_path: Path) -> None:
+    """One turn of each case: the four rows with their targets, each figure a positive time."""
+    results = startup.run(tmp_path, runs=1)
+    assert [result.case for result in results] == [f"start-up {case.name}" for case in startup.CASES]
+    finite(results)
+    for result, case in zip(results, startup.CASES, strict=True):
+        assert result.unit == "s" and result.emulator[0] > 0 and result.reference[0] > 0
+        assert [(check.op, check.bound) for check in result.checks] == [("<=", case.target_s)]
+    assert table(results).count("\n") == len(results) + 1

@@ -91,8 +91,42 @@ def test_the_makefile_runs_each_step_through_the_script() -> None:
     ).stdout
     steps = [line for line in plan.splitlines() if "scripts/setup_step.py .venv/setup.log" in line]
     assert [line.split('"')[1] for line in steps] == [
-        "[2/4] upgrading pip",
-        "[3/4] installing stage-emu and its run-time dependencies",
-        "[4/4] installing the test extra (pytest, hypothesis, ruff, mypy, microscope, matplotlib)",
+        "[2/5] upgrading pip",
+        "[3/5] installing stage-emu and its run-time dependencies",
+        "[4/5] installing the test extra (pytest, hypothesis, ruff, mypy, microscope, matplotlib)",
+        "[5/5] byte-compiling stage-emu",
     ]
     assert "pip install --disable-pip-version-check -e '.[test]'" in plan
+    assert steps[-1].endswith(COMPILE)
+
+
+#: what setup ends with and every run, test, bench and soak starts with (plain .pyc, by timestamp)
+COMPILE = "-m compileall -q --invalidation-mode timestamp emulator protocols configs scripts tests"
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
+@pytest.mark.parametrize(
+    ("target", "command"),
+    [
+        ("run", "stage-emu serve"),
+        ("test", "ruff check"),
+        ("bench", "scripts/bench.py"),
+        ("soak", "scripts/torture.py"),
+    ],
+)
+def test_every_run_first_compiles_what_changed(target: str, command: str) -> None:
+    """A changed .py is compiled once by make, not by every process that imports it (with
+    PYTHONDONTWRITEBYTECODE set, as on CI machines, no import writes the .pyc)."""
+    plan = subprocess.run(["make", "-n", target], cwd=ROOT, capture_output=True, text=True, check=True).stdout
+    lines = plan.splitlines()
+    compiled = [i for i, line in enumerate(lines) if line == f".venv/bin/python {COMPILE}"]
+    ran = next(i for i, line in enumerate(lines) if command in line)
+    assert compiled and compiled[-1] < ran, plan
+
+
+@pytest.mark.skipif(shutil.which("make") is None, reason="needs make")
+def test_clean_removes_the_compiled_files() -> None:
+    plan = subprocess.run(
+        ["make", "-n", "clean"], cwd=ROOT, capture_output=True, text=True, check=True
+    ).stdout
+    assert "find . -name __pycache__ -type d -prune -exec rm -rf {} +" in plan
