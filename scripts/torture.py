@@ -139,7 +139,10 @@ def main() -> int:
             if args.only and name not in args.only:
                 continue
             print(f"torture: {name}...", file=sys.stderr, flush=True)
-            outcomes.append(run())
+            try:
+                outcomes.append(run())
+            except Exception as exc:  # an attack that breaks is a failed row, not a lost table
+                outcomes.append(Outcome(name, exceeded=[f"the attack failed: {type(exc).__name__}: {exc}"]))
     print(table(outcomes))
     if args.json:
         args.json.write_text(json.dumps([o.__dict__ for o in outcomes], indent=1, default=str) + "\n")

@@ -225,12 +225,18 @@ def _answer_after_flood(url: str, profile: str) -> bool:
     """A new client on the port gets a well-formed answer: after the random bytes the device may be
     mid-frame or mid-line, so a terminator goes first, then a query whose reply shape is known."""
     request, length, ending = (b"c\r", 13, b"\r") if profile == "mp285" else (b"W X\r", None, b"\r\n")
-    with serial.serial_for_url(url, 9600, timeout=2) as port:
+    # a short timeout: the terminator's answer (if any) is a few characters, and a read that does not
+    # fill waits out its timeout; the query's reply then gets as many reads as it needs
+    with serial.serial_for_url(url, 9600, timeout=0.25) as port:
         for _ in range(5):
             port.write(b"\r")
             port.read(64)  # whatever the terminator set off
             port.write(request)
-            got = port.read(length) if length else port.read_until(ending)
+            got = b""
+            for _ in range(8):
+                got += port.read(length - len(got)) if length else port.read_until(ending)
+                if got.endswith(ending):
+                    break
             if got.endswith(ending) and (length is None or len(got) == length):
                 return True
     return False

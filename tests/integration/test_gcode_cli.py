@@ -28,9 +28,15 @@ G00 X0 Y0
 """
 
 
+#: device seconds per wall second: the program's 3.5 s of moves take a third of a second; the host
+#: side (the executor's polls, its reply timeout) runs on the wall clock, whatever the scale
+TIME_SCALE = "10"
+
+
 @pytest.fixture(scope="module")
 def daemon(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningDaemon]:
-    served = start_daemon(tmp_path_factory.mktemp("gcode"), ["--profile", DEVICE], expect_ports=1)
+    args = ["--profile", DEVICE, "--time-scale", TIME_SCALE]
+    served = start_daemon(tmp_path_factory.mktemp("gcode"), args, expect_ports=1)
     yield served
     served.stop()
 
@@ -40,7 +46,9 @@ def test_gcode_runs_a_program_on_the_served_emulator(daemon: RunningDaemon, tmp_
     control.reset(DEVICE)
     program = tmp_path / "quarter.nc"
     program.write_text(PROGRAM)
-    result = CliRunner().invoke(main, ["gcode", str(program), "--port", daemon.port(DEVICE)])
+    # a reply timeout only a hang reaches on a loaded machine (the default is 2 s)
+    args = ["gcode", str(program), "--port", daemon.port(DEVICE), "--timeout", "10"]
+    result = CliRunner().invoke(main, args)
     assert result.exit_code == 0, result.stderr
     lines = result.stdout.splitlines()
     assert lines[0] == "counts per mm: X=45396 Y=45396 Z=20000"
@@ -48,7 +56,7 @@ def test_gcode_runs_a_program_on_the_served_emulator(daemon: RunningDaemon, tmp_
     axes = control.get(DEVICE, "axes")
     assert (axes["X"]["user_mm"], axes["Y"]["user_mm"]) == (0.0, 0.0)
     assert control.get(DEVICE, "ttl_out0") == 0
-    with MS2000(daemon.port(DEVICE), 115200) as stage:
+    with MS2000(daemon.port(DEVICE), 115200, timeout=10) as stage:
         assert stage.get("S", "X", "Y") == {"X": 5.1456, "Y": 5.1456}  # restored after the run
 
 

@@ -11,6 +11,7 @@ import signal
 import socket
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -21,6 +22,11 @@ from tests.support.daemon import ROOT, RunningDaemon, start_daemon
 
 PROBE = ROOT / "tests" / "support" / "probe.yaml"
 CLI = [sys.executable, "-m", "tests.support.serve"]
+#: generous: only a hang takes this long on any machine
+HANG_S = 10.0
+#: a command's whole run, its start included: generous, a loaded machine has taken ten seconds to
+#: start a Python process
+RUN_S = 60.0
 
 
 def env(tmp_path: Path) -> dict[str, str]:
@@ -30,7 +36,7 @@ def env(tmp_path: Path) -> dict[str, str]:
     return {**os.environ, "PYTHONPATH": str(ROOT), "XDG_RUNTIME_DIR": str(run)}
 
 
-def serve(tmp_path: Path, *args: str, timeout: float = 20) -> subprocess.CompletedProcess[str]:
+def serve(tmp_path: Path, *args: str, timeout: float = RUN_S) -> subprocess.CompletedProcess[str]:
     """A `serve` that is expected to fail at start."""
     return subprocess.run(
         [*CLI, "serve", "--profile", str(PROBE), *args],
@@ -56,7 +62,7 @@ def one_line_error(result: subprocess.CompletedProcess[str], text: str) -> None:
 
 
 def echo(path: str, text: str = "hi") -> bytes:
-    with serial.Serial(path, 9600, timeout=2) as port:
+    with serial.Serial(path, 9600, timeout=HANG_S) as port:
         port.write(f"E {text}\r".encode())
         return port.read(len(text) + 1)
 
@@ -163,10 +169,10 @@ def test_sigusr1_reopens_the_traffic_log_and_keeps_serving(tmp_path: Path) -> No
     try:
         assert echo(daemon.port("probe"), "one") == b"one\r"
         traffic.rename(tmp_path / "traffic.1.jsonl")  # log rotation
+        said = len(daemon.stderr().splitlines())
         daemon.proc.send_signal(signal.SIGUSR1)
-        client = daemon.control()
-        while not traffic.exists():
-            client.list()  # the signal is handled between requests
+        assert daemon.log.wait_line("reopened", said, HANG_S) is not None, daemon.stderr()
+        assert traffic.exists()
         assert echo(daemon.port("probe"), "two") == b"two\r"
         assert daemon.proc.poll() is None
     finally:
@@ -225,7 +231,7 @@ def test_running_out_of_descriptors_neither_floods_nor_wedges(tmp_path: Path) ->
             sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
             sock.connect(str(daemon.control_path))
             hogs.append(sock)
-        with serial.Serial(daemon.port("probe"), 9600, timeout=2) as port:
+        with serial.Serial(daemon.port("probe"), 9600, timeout=HANG_S) as port:
             for i in range(5):  # the devices keep serving meanwhile
                 port.write(f"E {i}\r".encode())
                 assert port.read(2) == f"{i}\r".encode()
@@ -239,41 +245,41 @@ def test_running_out_of_descriptors_neither_floods_nor_wedges(tmp_path: Path) ->
     assert "Traceback" not in stderr and len(stderr.splitlines()) < 10, stderr
 
 
-def test_control_channel_refuses_wedging_numbers(tmp_path: Path) -> None:
-    daemon = probe(tmp_path)
-    try:
-        client = daemon.control()
+@pytest.fixture(scope="module")
+def plain(tmp_path_factory: pytest.TempPathFactory) -> Iterator[RunningDaemon]:
+    """One probe daemon for the tests that only ask it things (and leave it as they found it)."""
+    daemon = probe(tmp_path_factory.mktemp("plain"))
+    yield daemon
+    assert daemon.stop() == 0, daemon.stderr()
+
+
+def test_control_channel_refuses_wedging_numbers(plain: RunningDaemon) -> None:
+    with ControlClient(plain.control_path) as client:
         for request in ({"op": "clock", "scale": 1e300}, {"op": "step", "seconds": 1e300}):
             with pytest.raises(ControlFailure, match="must be between"):
                 client.request(request)
         with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as raw:
-            raw.connect(str(daemon.control_path))
+            raw.connect(str(plain.control_path))
             raw.sendall(b'{"id": 1, "op": "clock", "scale": NaN}\n')
             assert "not a number JSON allows" in json.loads(raw.makefile().readline())["error"]
         with pytest.raises(ControlFailure, match="ms"):
             client.fault("probe", "latency")
         assert client.clock()["scale"] == 1.0
-        assert echo(daemon.port("probe")) == b"hi\r"
-    finally:
-        assert daemon.stop() == 0
+    assert echo(plain.port("probe")) == b"hi\r"
 
 
-def test_list_shows_health_and_names_are_listed(tmp_path: Path) -> None:
-    daemon = probe(tmp_path)
-    try:
-        client = daemon.control()
+def test_list_shows_health_and_names_are_listed(plain: RunningDaemon) -> None:
+    with ControlClient(plain.control_path) as client:
         device = client.list()[0]
         assert device["storage_error"] is None
         assert device["ports"][0]["stats"] == {"output_dropped": 0, "input_discarded": 0}
         assert client.names("probe") == {"inputs": ["say"], "observables": ["host", "lines"]}
-        result = subprocess.run(
-            [*CLI, "ctl", "--control", str(daemon.control_path), "get", "probe"],
-            cwd=ROOT,
-            env=env(tmp_path),
-            capture_output=True,
-            text=True,
-            timeout=20,
-        )
-        assert result.returncode == 0 and json.loads(result.stdout)["observables"] == ["host", "lines"]
-    finally:
-        assert daemon.stop() == 0
+    result = subprocess.run(
+        [*CLI, "ctl", "--control", str(plain.control_path), "get", "probe"],
+        cwd=ROOT,
+        env=env(plain.workdir),
+        capture_output=True,
+        text=True,
+        timeout=RUN_S,
+    )
+    assert result.returncode == 0 and json.loads(result.stdout)["observables"] == ["host", "lines"]

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import select
 import signal
 import socket
 import subprocess
@@ -201,6 +202,8 @@ def watched(tmp_path: Path) -> Iterator[tuple[RunningDaemon, subprocess.Popen[st
         talker = threading.Thread(target=talk)
         talker.start()
         try:
+            # generous, the watch's start included: only a hang takes this long
+            assert select.select([watch.stdout], [], [], 60)[0], "`ctl watch` printed nothing"
             record = json.loads(watch.stdout.readline())
         finally:
             done.set()

@@ -16,7 +16,8 @@ from emulator.profile import ProfileError, load_profile
 from emulator.yamlsource import MAX_DEPTH, MAX_FILE_BYTES, SourceError, load_located, merge, read_source
 from scripts.soak.hostile_profiles import BIG, SECRET, write_cases
 
-#: a sanity bound only: the cases stop at a limit long before (about 0.2 s each)
+#: a sanity bound only, on this process's CPU time (a loaded machine cannot inflate it): the cases
+#: stop at a limit long before (well under a second each)
 SLOW_S = 5.0
 MEMORY_BYTES = 100 * 1024 * 1024
 
@@ -68,19 +69,19 @@ def assert_refused(message: str, expected: str) -> None:
 @pytest.mark.parametrize("name", NAMES)
 def test_load_profile_refuses(cases: dict[str, tuple[Path, str]], name: str) -> None:
     path, expected = cases[name]
-    start = time.monotonic()
+    start = time.process_time()
     with pytest.raises(ProfileError) as info:
         load_profile(str(path))
-    assert time.monotonic() - start < SLOW_S
+    assert time.process_time() - start < SLOW_S
     assert_refused(str(info.value), expected)
 
 
 @pytest.mark.parametrize("name", NAMES)
 def test_validate_refuses(cases: dict[str, tuple[Path, str]], name: str) -> None:
     path, expected = cases[name]
-    start = time.monotonic()
+    start = time.process_time()
     result = CliRunner().invoke(main, ["validate", str(path)])
-    assert time.monotonic() - start < SLOW_S
+    assert time.process_time() - start < SLOW_S
     assert result.exit_code == 1
     assert result.exception is None or isinstance(result.exception, SystemExit)
     assert_refused(result.stderr, expected)

@@ -17,6 +17,9 @@ from emulator.runner import DeviceRunner
 from emulator.walltimer import LOOP_TIMER_EARLY_S, TIMERFD_EARLY_S, LoopTimer, TimerFd, make_timer
 from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)
 
+#: wall seconds to a deadline 10 device seconds away at scale 1 (the re-arming test's old arming)
+UNSCALED_S = 10.0
+
 
 async def _fired_after(timer_kind: str, delay: float, *, rearm: float | None = None) -> tuple[float, int]:
     """Arm a timer for `delay` (then, with `rearm`, arm it again for that instead); wall seconds to
@@ -111,9 +114,11 @@ def test_a_scale_change_rearms_the_runner_for_the_same_device_time() -> None:
         runner.after(10.0, reached.set)
         clock.set_scale(100.0)
         start = time.monotonic()
-        await asyncio.wait_for(reached.wait(), 5)
+        await asyncio.wait_for(reached.wait(), UNSCALED_S)
         runner.close()
         assert clock.now() >= due
         return time.monotonic() - start
 
-    assert asyncio.run(check()) < 1.0
+    # 0.1 s when re-armed; not re-armed, the old arming would fire after 10 s: half of that tells
+    # them apart, and only a loop held for seconds could make it fail
+    assert asyncio.run(check()) < UNSCALED_S / 2
