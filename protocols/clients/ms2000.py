@@ -20,6 +20,7 @@ Command lines, reply shapes and error codes are those of the codec, `protocols.m
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -200,13 +201,22 @@ class MS2000:
             raise NoReply(f"'/': unexpected reply {text!r}")
         return text == "B"
 
-    def wait_until_idle(self, timeout: float = 60.0, poll: float = 0.02) -> None:
-        """Poll `/` until the controller reports `N`."""
-        deadline = time.monotonic() + timeout
+    def wait_until_idle(
+        self,
+        timeout: float = 60.0,
+        poll: float = 0.02,
+        *,
+        sleep: Callable[[float], None] = time.sleep,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        """Poll `/` until the controller reports `N`, pausing `poll` s between polls with `sleep`
+        and timing out on `clock` (an emulator in virtual time passes its pauses in device time:
+        `sleep=port.advance`, `clock=lambda: port.device_time`)."""
+        deadline = clock() + timeout
         while self.is_busy():
-            if time.monotonic() > deadline:
+            if clock() > deadline:
                 raise TimeoutError(f"still busy after {timeout} s")
-            time.sleep(poll)
+            sleep(poll)
 
     def halt(self) -> bool:
         """Stop all motion; True if a commanded move was running (`:N-21`)."""

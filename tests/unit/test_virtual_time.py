@@ -13,6 +13,7 @@ from emulator.control_client import ControlFailure
 from emulator.line import char_time
 from emulator.urlhandler.hosted import serve
 from emulator.urlhandler.url import VIRTUAL, AttachOptions, UrlOptions, parse_url
+from protocols.clients.ms2000 import MS2000
 
 CHAR = char_time(9600)
 
@@ -143,3 +144,15 @@ def test_bad_virtual_time_urls_are_one_line(url: str, message: str) -> None:
 
 def test_an_attach_url_names_the_device_and_channel() -> None:
     assert parse_url("stageemu://?attach=ms2000-3&channel=aux") == AttachOptions("ms2000-3", "aux")
+
+
+def test_the_bundled_client_pauses_in_device_time() -> None:
+    """`wait_until_idle` pauses with the sleep and clock it is given: in virtual time the port's,
+    so its pauses pass device time (with `time.sleep` they would pass none, and cost wall time)."""
+    with open_virtual() as port:
+        stage = MS2000(port)
+        stage.move(X=100000)  # 10 mm at the default speed
+        start = port.device_time
+        stage.wait_until_idle(timeout=60, poll=0.05, sleep=port.advance, clock=lambda: port.device_time)
+        assert stage.where()["X"] == 100000.0
+        assert 1.0 < port.device_time - start < 5.0

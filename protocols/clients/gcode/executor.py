@@ -174,7 +174,9 @@ class GcodeExecutor:
             self._speed_sent.update(changed)
         end = dict(zip(AXES, move.end, strict=True))
         self.stage.move(**{a: round(end[a] * self.units_per_mm[a], 6) for a in deltas})
-        self.stage.wait_until_idle(timeout=self.move_timeout_s, poll=self.poll_s)
+        self.stage.wait_until_idle(
+            timeout=self.move_timeout_s, poll=self.poll_s, sleep=self._sleep, clock=self._clock
+        )
 
     def _within_maximum(self, speeds: dict[str, float]) -> dict[str, float]:
         """The feed vector shrunk as a whole until no axis exceeds its maximum, so the path keeps
