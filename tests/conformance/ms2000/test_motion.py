@@ -288,14 +288,13 @@ def test_tv_045_wait_time_keeps_the_axis_busy(ms: Host) -> None:
 def test_tv_047_autozero_blocks_for_half_a_second(ms: Host) -> None:
     """TV-47 (MS-98, MS-33): `AZ X` answers when its 0.5 s balancing ends; the wire adds the 5
     characters of the command and the 4 of the reply. Exact in virtual time; on a daemon or a real
-    port ±50 ms covers the host's scheduling."""
+    port 50 ms early covers the host's clock readings, and load may only make it later."""
 
     def autozero(reply: bytes) -> None:
         start = ms.monotonic()
         ms.ask(b"AZ X\r", reply)
         elapsed = ms.monotonic() - start - (5 + len(reply)) * CHAR_S
-        print(repr(elapsed))
-        assert elapsed == pytest.approx(0.5, abs=ms.slack(0.05))
+        assert 0.5 - ms.slack(0.05) <= elapsed <= 0.5 + ms.late(0.05)
 
     autozero(ACK)
     ms.write(b"AZ X\r")
