@@ -29,7 +29,6 @@ asi = pytest.importorskip("microscope.controllers.asi")
 OFFSET = 20000
 
 
-@pytest.mark.smoke
 def test_tv_218_microscope_driver(
     open_target: Callable[..., Target], monkeypatch: pytest.MonkeyPatch
 ) -> None:
