@@ -41,17 +41,24 @@ class Deadline:
         return self.at is not None and self.now() >= self.at
 
 
-class RealTime:
+class Timebase:
+    """The host's clock (`now`) and the deadlines of its timeouts on it."""
+
+    def __init__(self, now: Callable[[], float]) -> None:
+        self.now = now
+
+    def after(self, seconds: float | None) -> Deadline:
+        return Deadline(None if seconds is None else self.now() + seconds, self.now)
+
+
+class RealTime(Timebase):
     """Device time runs with the wall clock, `scale` times faster."""
 
     virtual = False
 
     def __init__(self, scale: float) -> None:
+        super().__init__(time.monotonic)
         self.clock = ScaledClock(scale)
-        self.now: Callable[[], float] = time.monotonic
-
-    def after(self, seconds: float | None) -> Deadline:
-        return Deadline(None if seconds is None else self.now() + seconds, self.now)
 
     def wait(
         self,
@@ -68,17 +75,14 @@ class RealTime:
         changed.wait(None if delay is None else max(delay, MIN_WAIT_S))
 
 
-class VirtualTime:
+class VirtualTime(Timebase):
     """Device time passes only as the host waits: the host's clock is the device's."""
 
     virtual = True
 
     def __init__(self) -> None:
         self.clock = VirtualClock()
-        self.now: Callable[[], float] = self.clock.now
-
-    def after(self, seconds: float | None) -> Deadline:
-        return Deadline(None if seconds is None else self.now() + seconds, self.now)
+        super().__init__(self.clock.now)
 
     def wait(
         self,

@@ -24,14 +24,14 @@ def short_cpu_samples(monkeypatch: pytest.MonkeyPatch) -> None:
 
 @pytest.mark.usefixtures("short_cpu_samples")
 def test_flood_of_random_bytes_is_held_to_the_wire_rate(tmp_path: Path) -> None:
-    out = attacks.flood(tmp_path, seconds=3, flooded=3, idle_trips=50)
+    out = attacks.flood(tmp_path, seconds=2, flooded=3, idle_trips=30)
     timing = {f"other port's p99 > {attacks.P99_RATIO}x idle"}
     assert set(out.exceeded) <= timing, out.figures
     assert out.figures["rss_after_mb"] - out.figures["rss_before_mb"] < attacks.RSS_GROWTH_MB
 
 
 def test_network_clients_flooding_without_reading_are_held_to_the_wire_rate(tmp_path: Path) -> None:
-    out = attacks.network_flood(tmp_path, seconds=3, idle_trips=50)
+    out = attacks.network_flood(tmp_path, seconds=2, idle_trips=30)
     timing = {f"other port's p99 > {attacks.P99_RATIO}x idle"}
     assert set(out.exceeded) <= timing, (out.exceeded, out.figures)
     assert out.figures["bytes_accepted"] > 0, out.figures
@@ -45,7 +45,7 @@ def test_open_close_cycles_leak_nothing(tmp_path: Path) -> None:
 
 
 def test_subscriber_that_never_reads_costs_bounded_memory(tmp_path: Path) -> None:
-    out = attacks.slow_subscriber(tmp_path, seconds=3)
+    out = attacks.slow_subscriber(tmp_path, seconds=2)
     assert out.passed, (out.exceeded, out.figures)
     assert out.figures["events_published"] > 100, out.figures
 
@@ -53,7 +53,7 @@ def test_subscriber_that_never_reads_costs_bounded_memory(tmp_path: Path) -> Non
 def test_devices_that_cannot_keep_up_fall_behind_instead_of_holding_the_daemon(tmp_path: Path) -> None:
     """Three devices with more work than the CPU can do at time scale 10 000: before, the loop
     stopped turning (no neighbour, no control channel, SIGTERM ignored, memory growing)."""
-    run = starvation.starve(tmp_path, seconds=3)
+    run = starvation.starve(tmp_path, seconds=2)
     assert len(run.neighbour.samples) > 10 and len(run.control.samples) > 10
     assert all(behind > 0 for behind in run.behind_s.values()), run.behind_s
     assert run.lag_warnings == len(starvation.LOADS)
