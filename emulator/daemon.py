@@ -250,6 +250,7 @@ class Daemon:
     async def shutdown(self) -> None:
         """Undo what start did, each step on its own so one failure does not leave the rest behind."""
         self._closing = True
+        self._errors.closing = True
         for runner in self.runners.values():
             _cleanup_step(f"closing {runner.name}", runner.close)
         if self._flash is not None:
@@ -300,6 +301,9 @@ class _RateLimitedErrors:
     logs a traceback each time."""
 
     clock: Any = time.monotonic
+    #: the daemon is shutting down: what fails now is a callback of something already closed (asyncio
+    #: retries `accept` after EMFILE on a timer, and that timer can fire on a server stopped since)
+    closing: bool = False
     _limiter: LogLimiter = field(init=False)
 
     def __post_init__(self) -> None:
@@ -308,6 +312,9 @@ class _RateLimitedErrors:
     def handle(self, loop: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
         exc = context.get("exception")
         message = context.get("message", "error")
+        if self.closing:
+            log.info("while shutting down: %s: %s", message, exc)
+            return
         held = self._limiter.admit(f"{message}|{type(exc).__name__}|{getattr(exc, 'errno', '')}")
         if held is None:
             return

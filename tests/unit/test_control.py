@@ -181,6 +181,21 @@ def test_loop_errors_are_logged_once_per_interval_with_a_count(caplog) -> None:
     assert all(r.exc_info is None for r in caplog.records)  # no traceback for resource errors
 
 
+def test_a_retry_on_a_server_closed_at_shutdown_is_no_traceback(caplog) -> None:
+    """asyncio retries `accept` after EMFILE on a timer; when the daemon stops the control server in
+    the meantime, the retry runs on a closed socket (ValueError: Invalid file descriptor: -1). Seen
+    under load in the descriptor-exhaustion test: a traceback in the daemon's log at SIGTERM."""
+    handler = _RateLimitedErrors()
+    handler.closing = True
+    context = {"message": "Exception in callback _start_serving", "exception": ValueError("fd -1")}
+    with caplog.at_level(logging.INFO, "stage_emu.daemon"):
+        handler.handle(None, context)  # type: ignore[arg-type]
+    assert [r.getMessage() for r in caplog.records] == [
+        "while shutting down: Exception in callback _start_serving: fd -1"
+    ]
+    assert caplog.records[0].levelno == logging.INFO and caplog.records[0].exc_info is None
+
+
 def test_traffic_log_write_failure_is_logged_once_and_logging_stops(caplog) -> None:
     traffic = TrafficLog(Path("/dev/full"))
     with caplog.at_level(logging.ERROR, "stage_emu.traffic"):
