@@ -24,6 +24,9 @@ class Entry:
 
 
 COMMANDS: dict[str, Entry] = {
+    "capture": Entry(
+        "emulator.cli_capture", "capture", "Read a controller's identity and settings with read-only..."
+    ),
     "ctl": Entry("emulator.cli_ctl", "ctl", "Talk to a running daemon over its control channel."),
     "describe": Entry(
         "emulator.cli_profiles",
