@@ -43,6 +43,11 @@ DEFAULT_RIG = "rig.yaml"
     help="Serve the --profile device's main port over RFC 2217 (telnet serial port) here.",
 )
 @click.option(
+    "--serial",
+    metavar="DEVICE",
+    help="Serve the --profile device's main port on this serial port (/dev/ttyUSB0, COM7, a pyserial URL).",
+)
+@click.option(
     "--timing", type=click.Choice(TIMINGS), help="Pace every port at its baud rate, or deliver at once."
 )
 @click.option(
@@ -78,6 +83,7 @@ def serve(
     profiles: tuple[str, ...],
     tcp: str | None,
     rfc2217: str | None,
+    serial: str | None,
     timing: str | None,
     time_scale: float,
     ready_file: Path | None,
@@ -92,7 +98,8 @@ def serve(
 
     Prints one JSON line per port: {"device", "profile", "port", "path", "pts", "transport"}. Only
     `path` is stable: `pts` changes when a port is re-created (a `disconnect` fault); a network port
-    has `path` socket://HOST:PORT (--tcp) or rfc2217://HOST:PORT (--rfc2217) and no `pts`. SIGINT,
+    has `path` socket://HOST:PORT (--tcp) or rfc2217://HOST:PORT (--rfc2217) and no `pts`; a serial
+    port (--serial) has the device as `path` and the device node behind it as `pts`. SIGINT,
     SIGTERM, SIGHUP and SIGQUIT stop it cleanly; SIGUSR1 reopens the traffic log. To run two daemons
     at once, give the second its own --link-dir, --control and --state-dir (or --no-state)."""
     logging.basicConfig(
@@ -100,11 +107,16 @@ def serve(
     )
     if rig is not None and profiles:
         fail("give either a rig file or --profile options, not both")
-    if tcp is not None and rfc2217 is not None:
-        fail("give --tcp or --rfc2217, not both (a rig file can serve several ports)")
+    given = [
+        (kind, value)
+        for kind, value in (("tcp", tcp), ("rfc2217", rfc2217), ("serial", serial))
+        if value is not None
+    ]
+    if len(given) > 1:
+        fail(f"give --{given[0][0]} or --{given[1][0]}, not both (a rig file can serve several ports)")
     if no_state and state_dir is not None:
         fail("give --state-dir or --no-state, not both")
-    network = ("tcp", tcp) if tcp is not None else ("rfc2217", rfc2217) if rfc2217 is not None else None
+    network = given[0] if given else None
     if network is not None and not profiles:
         fail(f"--{network[0]} goes with --profile (in a rig file, give the port `transport: {network[0]}`)")
     try:

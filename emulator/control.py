@@ -333,7 +333,8 @@ def _describe(runner: DeviceRunner) -> dict[str, Any]:
                 "transport": ch.transport.kind if ch.transport else None,
                 "attached": ch.attached,
                 "host": ch.host.describe() if ch.host else None,
-                "timing": ch.timing,
+                # a serial line is paced by its UARTs, whatever the port's timing says
+                "timing": "serial line" if ch.transport and ch.transport.wire_paces else ch.timing,
                 "faults": ch.faults.describe(),
                 "stats": ch.stats.describe(),
             }

@@ -91,6 +91,25 @@ class LineSettings(HostLine):
     fields stay optional until those build `HostLine` instead."""
 
 
+@dataclass(frozen=True)
+class ModemLines:
+    """The modem-status lines a device drives, named as the host reads them at its end of a direct
+    cable (a null-modem cable to a PC's serial port): CTS, DSR, CD, RI. Only transports that carry
+    modem lines show them (a serial port, RFC 2217); a pseudo-terminal and raw TCP carry none. With
+    RTS/CTS flow control (`LineSettings.rtscts`) the transport drives CTS from the device's room for
+    input instead of `cts`, and sends only while the host's RTS is on."""
+
+    cts: bool = False
+    dsr: bool = False
+    cd: bool = False
+    ri: bool = False
+
+
+# Line errors a port's UART reports on a received character (`Device.receive_line_error`; a serial
+# transport sees them, a PTY or a network port never does). A break reads as a framing error on 00.
+FRAMING_ERROR = "framing"
+PARITY_ERROR = "parity"
+
 # Kinds of traffic-log records (emulator/trafficlog.py). Received bytes:
 FRAME = "frame"  # a complete command (or control sequence) the device acted on
 GARBLED = "garbled"  # a character the line mismatch corrupted, as the receiving end read it
@@ -231,6 +250,18 @@ class Device(ABC):
         self.advance(now)
         self._receive(data, now, channel)
 
+    def receive_line_error(self, byte: int, kind: str, now: float, channel: str = MAIN) -> None:
+        """A character received at device time `now` with a line error (`kind`: FRAMING_ERROR or
+        PARITY_ERROR), in its place among the received bytes. What the firmware makes of it is the
+        model's (`_receive_line_error`)."""
+        self.advance(now)
+        self._receive_line_error(byte, kind, now, channel)
+
+    def _receive_line_error(self, byte: int, kind: str, now: float, channel: str) -> None:
+        """By default the character is data, as a UART that hands over its data register regardless
+        of the error flag would have it."""
+        self._receive(bytes((byte,)), now, channel)
+
     def advance(self, now: float) -> None:
         """Process every internal event due at or before `now`."""
         if now > self.now:
@@ -289,6 +320,10 @@ class Device(ABC):
         """What a host with these (differing) settings will experience, for the one-line warning,
         e.g. `traffic will be garbled (line_mismatch=garble)`."""
         return ""
+
+    def modem_lines(self, channel: str = MAIN) -> ModemLines:
+        """The modem-status lines the device drives on `channel` (none unless its family says)."""
+        return ModemLines()
 
     # ---- control channel ---------------------------------------------------------------------
 

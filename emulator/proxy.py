@@ -27,7 +27,7 @@ from pathlib import Path
 import serial
 
 import emulator.urlhandler  # noqa: F401  (a stageemu:// URL may stand for the controller)
-from emulator.device import HostLine, LineSettings
+from emulator.device import HostLine, LineSettings, ModemLines
 from emulator.replay import ReplayError, apply_line, open_port
 from emulator.session import RX, TX, Header, SessionWriter
 from emulator.transports.pty import PtyTransport
@@ -186,3 +186,13 @@ class Proxy:
 
     def input_discarded(self, count: int) -> None:
         log.info("%d bytes the host wrote before closing were never read", count)
+
+    def device_line(self) -> LineSettings:
+        return self.options.line
+
+    def modem_lines(self) -> ModemLines:
+        """Not relayed: the host's side is a pseudo-terminal, which carries no modem lines."""
+        return ModemLines()
+
+    def line_error(self, byte: int, kind: str) -> None:
+        """Never called: the host's side is a pseudo-terminal, which reports no line errors."""

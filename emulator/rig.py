@@ -8,11 +8,12 @@ devices:
       knobs: {empty_line_reply: ignore}
     ports:                      # optional; every channel of the device gets a PTY regardless
       - channel: main           # the device's port (most devices have only `main`)
-        transport: pty          # pty (default), tcp (socket://) or rfc2217 (rfc2217://)
+        transport: pty          # pty (default), tcp (socket://), rfc2217 (rfc2217://) or serial
         link: ~/dev/ttyStage    # pty only, optional; default <runtime dir>/<name> (<name>.<channel>)
         mode: 0600              # pty: pts permissions (octal)
         bind: 127.0.0.1         # tcp/rfc2217 only: the address to listen on (default 127.0.0.1)
         port: 7001              # tcp/rfc2217 only, required: TCP port (0: any free one, announced)
+        device: /dev/ttyUSB0    # serial only, required: the port to open (a path, COM7, a pyserial URL)
         timing: realistic       # or fast
 
 A rig file is read like a profile (`emulator.yamlsource.read_source`: regular file, 1 MiB, UTF-8,
@@ -46,7 +47,7 @@ from emulator.schema import (
     required,
     setting,
 )
-from emulator.transports import KINDS, NETWORK_KINDS
+from emulator.transports import DEVICE_KINDS, KINDS, NETWORK_KINDS
 from emulator.yamlsource import Problem, SourceError, in_file_order, read_source
 
 NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}"
@@ -70,7 +71,9 @@ class Anything(Type):
 @dataclass(frozen=True)
 class RigPort(Schema):
     channel: str = setting(Str(), "main", doc="device channel this port carries")
-    transport: str = setting(Choice(KINDS), "pty", doc="pty, tcp (raw socket) or rfc2217")
+    transport: str = setting(
+        Choice(KINDS), "pty", doc="pty, tcp (raw socket), rfc2217 or serial (a real port)"
+    )
     link: str | None = setting(Nullable(Str()), None, doc="stable path of the port (a symlink to the pts)")
     mode: int = setting(Int(0, 0o777), 0o600, doc="permissions of the pts device node (pty)")
     bind: str | None = setting(Nullable(Str()), None, doc=f"tcp/rfc2217: address (default {DEFAULT_BIND})")
@@ -78,14 +81,33 @@ class RigPort(Schema):
     timing: str | None = setting(
         Nullable(Choice(TIMINGS)), None, doc="realistic (paced at the baud rate) or fast"
     )
+    device: str | None = setting(
+        Nullable(Str()), None, doc="serial: the port to open (/dev/ttyUSB0, COM7 or a pyserial URL)"
+    )
 
     def validate(self, path: tuple[str | int, ...]) -> None:
+        allowed: tuple[str, ...]
         if self.transport in NETWORK_KINDS:
             if self.port is None:
                 raise SchemaError((*path, "port"), f"a {self.transport} port needs a TCP port number")
-            wrong = "link" if self.link is not None else None
+            allowed = ("bind", "port")
+        elif self.transport in DEVICE_KINDS:
+            if not self.device:
+                raise SchemaError(
+                    (*path, "device"),
+                    f"a {self.transport} port needs the device to open (/dev/ttyUSB0, COM7, a pyserial URL)",
+                )
+            allowed = ("device",)
         else:
-            wrong = "bind" if self.bind is not None else "port" if self.port is not None else None
+            allowed = ("link",)
+        wrong = next(
+            (
+                name
+                for name in ("link", "bind", "port", "device")
+                if name not in allowed and getattr(self, name) is not None
+            ),
+            None,
+        )
         if wrong:
             raise SchemaError((*path, wrong), f"does not apply to a {self.transport} port")
 
@@ -116,6 +138,7 @@ class PortSpec:
     timing: str | None
     bind: str = DEFAULT_BIND
     port: int | None = None  # tcp/rfc2217 only
+    device: str | None = None  # serial only
 
     def address(self) -> str:
         return f"{self.bind}:{self.port}"
@@ -169,6 +192,7 @@ def load_rig(path: FsPath) -> Rig:
                 p.timing,
                 p.bind or DEFAULT_BIND,
                 p.port,
+                p.device,
             )
             for p in dev.ports or ()
         )
@@ -221,6 +245,7 @@ def rig_problems(rig: Rig) -> list[tuple[int, str]]:
     names: set[str] = set()
     links: set[FsPath] = set()
     addresses: set[str] = set()
+    serial_devices: set[str] = set()
     for index, dev in enumerate(rig.devices):
         if dev.name in names:
             problems.append((index, f"device name {dev.name!r} is used twice"))
@@ -243,6 +268,10 @@ def rig_problems(rig: Rig) -> list[tuple[int, str]]:
                 if port.address() in addresses:
                     problems.append((index, f"address {port.address()} is used by two ports"))
                 addresses.add(port.address())
+            if port.device is not None:
+                if port.device in serial_devices:
+                    problems.append((index, f"serial device {port.device} is used by two ports"))
+                serial_devices.add(port.device)
     return problems
 
 
@@ -260,7 +289,8 @@ def parse_address(text: str) -> tuple[str, int]:
 def rig_from_profiles(entries: list[str], network: tuple[str, str] | None = None) -> Rig:
     """`--profile NAME[:LINK]` options as a rig: the device is named after its profile, repeats
     of a profile get `-2`, `-3`... (`--profile mp285 --profile mp285` serves mp285 and mp285-2).
-    `network` (kind, address) serves the main port of the one profile on tcp or rfc2217 instead."""
+    `network` (kind, address) serves the main port of the one profile on tcp or rfc2217 instead, or
+    (serial, device) on that serial device."""
     if network is not None and len(entries) != 1:
         raise ProfileError(f"--{network[0]} serves one --profile; for several devices write a rig file")
     devices = []
@@ -276,6 +306,8 @@ def rig_from_profiles(entries: list[str], network: tuple[str, str] | None = None
             )
         elif link:
             raise ProfileError(f"--profile {entry}: a link does not apply to a {network[0]} port")
+        elif network[0] in DEVICE_KINDS:
+            port = PortSpec("main", network[0], None, 0o600, None, device=network[1])
         else:
             try:
                 bind, number = parse_address(network[1])

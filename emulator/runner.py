@@ -22,9 +22,10 @@ from typing import Any
 
 from emulator import mismatch
 from emulator.clock import Clock
-from emulator.device import Device, Emission, HostLine
+from emulator.device import GARBLED, Device, Emission, HostLine, LineSettings, ModemLines, RxNote
 from emulator.lag import DeviceTime, WorkBudget
 from emulator.line import REALISTIC, settings_char_time
+from emulator.line_errors import UNSEEN_HOST, LineErrors
 from emulator.port import CORRUPT_MASK, Channel, Faults, fault_params, unsent
 from emulator.trafficlog import LOG_ONLY, DeviceTraffic, TrafficLog
 from emulator.transports.base import Transport
@@ -59,6 +60,10 @@ class _ChannelSink:
         self.host_data: Callable[[bytes], None] = partial(runner.host_data, channel)
         self.room: Callable[[], int] = partial(runner.input_room, channel)
         self.input_discarded: Callable[[int], None] = partial(runner.input_discarded, channel)
+        self.line_error: Callable[[int, str], None] = partial(runner.host_line_error, channel)
+        # the runner's current model: a factory reset replaces it
+        self.device_line: Callable[[], LineSettings] = lambda: runner.device.line_settings(channel.name)
+        self.modem_lines: Callable[[], ModemLines] = lambda: runner.device.modem_lines(channel.name)
 
 
 class DeviceRunner:
@@ -90,6 +95,8 @@ class DeviceRunner:
         #: the device time the timer is armed for (None: not armed)
         self.device_timer_due: float | None = None
         self._actions: list[tuple[float, Callable[[], None]]] = []
+        #: per channel, the characters with line errors among its queued input (a serial port's)
+        self._line_errors: dict[str, LineErrors] = {}
         clock.on_change(self._on_clock_change)
 
     def _on_clock_change(self) -> None:
@@ -188,6 +195,13 @@ class DeviceRunner:
         ch.from_host.push(now, data)  # even when hung: the bytes take their wire time
         self.pump()
 
+    def host_line_error(self, ch: Channel, byte: int, kind: str) -> None:
+        """A character the port's UART received with a line error, after the bytes handed over so
+        far: it takes its wire time and its place in the input like any byte (emulator/line_errors.py)."""
+        self._line_errors.setdefault(ch.name, LineErrors()).add(len(ch.from_host), kind)
+        ch.from_host.push(self.clock.now(), bytes((byte,)))
+        self.pump()
+
     def input_discarded(self, ch: Channel, count: int) -> None:
         """The transport discarded input it had not handed over (the host hung up)."""
         ch.stats.input_discarded += count
@@ -210,6 +224,7 @@ class DeviceRunner:
         ch.to_host.clear()
         if not to_host_only:
             ch.from_host.clear()
+            self._line_errors.pop(ch.name, None)
 
     def input_room(self, ch: Channel) -> int:
         """Host bytes `ch` may take now (PortSink.room): 0 while either direction is backed up, and
@@ -243,8 +258,17 @@ class DeviceRunner:
 
     def _deliver_input(self, now: float) -> None:
         """Hand the device the host bytes due by `now`."""
-        for t, channel, data in self._due_input(now):
-            self.device.receive(data, t, channel)
+        for t, channel, data, error in self._due_input(now):
+            if error is None:
+                self.device.receive(data, t, channel)
+            else:
+                self._receive_line_error(t, channel, data[0], error)
+
+    def _receive_line_error(self, t: float, channel: str, byte: int, kind: str) -> None:
+        if self._traffic is not None:
+            note = f"garbled: the UART received {byte:02X} with a {kind} error ({UNSEEN_HOST})"
+            self._traffic.rx(RxNote(t, GARBLED, bytes((byte,)), note, channel))
+        self.device.receive_line_error(byte, kind, t, channel)
 
     def _finish_step(self, now: float) -> None:
         """The rest of a step once the device has its input: it runs to `now`, what is due leaves,
@@ -262,10 +286,11 @@ class DeviceRunner:
         self._resume_reading()
         self._arm_timer(early)
 
-    def _due_input(self, now: float) -> list[tuple[float, str, bytes]]:
+    def _due_input(self, now: float) -> list[tuple[float, str, bytes, str | None]]:
         """Host bytes whose wire time has ended, merged across channels in time order; bytes that
-        complete at the same instant (fast timing) stay together."""
-        due: list[tuple[float, str, bytes]] = []
+        complete at the same instant (fast timing) stay together. A character received with a line
+        error comes alone, with its kind."""
+        due: list[tuple[float, str, bytes, str | None]] = []
         for ch in self.channels.values():
             if ch.from_host.per_char > 0:
                 arrived = [(t, bytes([b])) for t, b in ch.from_host.take_each_due(now)]
@@ -273,15 +298,24 @@ class DeviceRunner:
                 arrived = ch.from_host.take_due(now)
             if not arrived:
                 continue
+            errors = self._line_errors.get(ch.name)
             if ch.faults.hung:  # a hung device hears nothing that arrives
+                if errors:
+                    for _, data in arrived:
+                        errors.split(data)  # their marks go with them
                 if self._traffic is not None:
                     data = b"".join(data for _, data in arrived)
                     self._traffic.lost_rx(
                         arrived[-1][0], ch.name, data, "hang fault: the device hears nothing"
                     )
                 continue
-            for t, data in arrived:
-                due.append((t, ch.name, data))
+            if errors:
+                due += [
+                    (t, ch.name, piece, kind) for t, data in arrived for piece, kind in errors.split(data)
+                ]
+            else:
+                for t, data in arrived:
+                    due.append((t, ch.name, data, None))
         if len(self.channels) > 1:
             due.sort(key=lambda item: item[0])
         return due
@@ -289,11 +323,14 @@ class DeviceRunner:
     def _refresh_pacing(self) -> None:
         """Character times from the current settings; recomputed only when one of them changed."""
         for ch in self.channels.values():
-            realistic = ch.timing == REALISTIC and self.device.pace_line
+            paced_by_wire = ch.transport is not None and ch.transport.wire_paces
+            realistic = ch.timing == REALISTIC and self.device.pace_line and not paced_by_wire
             own = self.device.line_settings(ch.name)
             key = (realistic, own, ch.host)
             if key == ch.paced_for:
                 continue
+            if ch.paced_for and ch.paced_for[1] != own and ch.transport is not None:
+                ch.transport.device_line_changed()  # a serial port follows the device's settings
             ch.paced_for = key
             ch.to_host.per_char = settings_char_time(own, own) if realistic else 0.0
             host = ch.host or own

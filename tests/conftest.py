@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 FAMILIES = ("mp285", "ms2000")
-EMULATOR_ONLY = ("control", "timing", "modem")
+EMULATOR_ONLY = ("control", "timing")
 
 
 def pytest_addoption(parser: pytest.Parser) -> None:
@@ -19,10 +19,11 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     )
     group.addoption(
         "--target",
-        choices=("virtual", "daemon"),
+        choices=("virtual", "daemon", "serial"),
         default="virtual",
         help="where tests/conformance runs without --port: the emulator in process, in virtual time "
-        "(default), or a daemon's pseudo-terminals in real time",
+        "(default), a daemon's pseudo-terminals in real time, or a daemon's serial port on a "
+        "null-modem cable of two pseudo-terminals",
     )
 
 

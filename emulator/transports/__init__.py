@@ -38,11 +38,20 @@ def _rfc2217(spec: PortSpec, link: Path, loop: asyncio.AbstractEventLoop) -> Tra
     return Rfc2217Transport(spec.bind, spec.port or 0, loop)
 
 
+def _serial(spec: PortSpec, link: Path, loop: asyncio.AbstractEventLoop) -> Transport:
+    from emulator.transports.serial import SerialTransport
+
+    assert spec.device is not None  # the rig requires it
+    return SerialTransport(spec.device, loop)
+
+
 #: by kind (each transport class's `kind`)
-FACTORIES: dict[str, Factory] = {"pty": _pty, "tcp": _tcp, "rfc2217": _rfc2217}
+FACTORIES: dict[str, Factory] = {"pty": _pty, "tcp": _tcp, "rfc2217": _rfc2217, "serial": _serial}
 KINDS = tuple(FACTORIES)
 #: the kinds that listen on a network address (`bind`, `port`) rather than create a link
 NETWORK_KINDS = ("tcp", "rfc2217")
+#: the kinds that open an existing serial device (`device`) rather than create a port
+DEVICE_KINDS = ("serial",)
 
 
 def create(spec: PortSpec, link: Path, loop: asyncio.AbstractEventLoop) -> Transport:

@@ -17,7 +17,7 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from typing import Protocol
 
-from emulator.device import HostLine
+from emulator.device import HostLine, LineSettings, ModemLines
 
 
 class PortSink(Protocol):
@@ -39,11 +39,29 @@ class PortSink(Protocol):
         """`count` host bytes were thrown away unread (the host hung up with them still queued)."""
         ...
 
+    def device_line(self) -> LineSettings:
+        """The device's own line settings on this port now (a serial port is opened at them)."""
+        ...
+
+    def modem_lines(self) -> ModemLines:
+        """The modem-status lines the device drives on this port (for transports that carry them)."""
+        ...
+
+    def line_error(self, byte: int, kind: str) -> None:
+        """The port's UART received `byte` with a line error (`kind`: emulator/device.py
+        FRAMING_ERROR or PARITY_ERROR), after the bytes already passed to `host_data` (a serial
+        port reports them; other transports never see one)."""
+        ...
+
 
 class Transport(ABC):
     """One host-facing port. `write` is only called while a host is attached."""
 
     kind: str = ""
+    #: The port is a physical line whose UARTs pace every character at the baud rate (a serial
+    #: port): the runner hands the device's bytes over at the instants they start and takes the
+    #: host's as the driver delivers them (complete), instead of pacing either direction again.
+    wire_paces: bool = False
 
     @property
     @abstractmethod
@@ -63,6 +81,11 @@ class Transport(ABC):
     def write(self, data: bytes) -> int:
         """Send bytes to the attached host (never blocks); returns how many of them were dropped
         because the host is not taking output and the transport's bounded buffer is full."""
+
+    def device_line_changed(self) -> None:
+        """The device's own line settings changed (`PortSink.device_line` has the new ones): a
+        transport whose port runs at them (a serial port) follows."""
+        return None
 
     def resume_reading(self) -> None:
         """The sink has room again: read what was left waiting because `room()` was 0. Called from

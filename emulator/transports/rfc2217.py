@@ -11,8 +11,13 @@ A client sets baud, data size, parity and stop size as separate messages, then t
 They are applied as one change (one mismatch warning, not one per message) when the flow control
 arrives, when the host next sends data, or once SETTLE_S passes with no further setting.
 
-DTR, RTS and break are accepted and logged; a `HostLine` has no field for them (no model uses them).
-The device side's lines read CTS, DSR and CD on, RI off: a powered controller on a direct cable.
+Modem lines follow emulator/transports/modem.py: the client reads the device's CTS, DSR, CD and RI
+from NOTIFY-MODEMSTATE (sent when the client accepts RFC 2217, at each change, and when it asks);
+with the device's RTS/CTS flow control, CTS goes off when the device's input is full (as the daemon
+stops reading) and on once it has room again (when the daemon resumes), and SET-CONTROL RTS OFF holds
+the device's output here until RTS is on. A client that set RTS/CTS while CTS is off has its data
+bytes held here (the access server's transmit buffer) while its telnet options are still read and
+answered. DTR and break are logged; a `HostLine` has no field for them (no model uses them).
 
 Bad input ends the connection with a log line, never the daemon: a malformed option (pyserial's
 parser raises on it; the line names the command and what was wrong, e.g. `SET-BAUDRATE with 2 value
@@ -24,6 +29,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
+import select
 import struct
 from collections.abc import Callable
 from typing import Any, cast
@@ -31,10 +37,11 @@ from typing import Any, cast
 import serial
 from serial import rfc2217
 
-from emulator.device import HostLine
+from emulator.device import HostLine, ModemLines
 from emulator.ratelimit import LogLimiter
+from emulator.transports.modem import HELD_INPUT_LIMIT, ModemLink
 from emulator.transports.pty import OUTPUT_LIMIT
-from emulator.transports.tcp import NetworkTransport
+from emulator.transports.tcp import DRAIN_CHUNK, NetworkTransport
 
 log = logging.getLogger("stage_emu.rfc2217")
 
@@ -109,25 +116,30 @@ def describe_bad_option(suboption: bytes | None) -> str:
 
 
 class ComPortState:
-    """The serial-like object PortManager drives: what the client set. A refused value raises
-    ValueError, which PortManager answers with the value in force. Until the client sets a value,
-    the getters answer pyserial's defaults (9600 8N1, no flow control) to a client's query."""
+    """The serial-like object PortManager drives: what the client set, and the device's modem lines
+    it reports (`lines`). A refused value raises ValueError, which PortManager answers with the
+    value in force. Until the client sets a value, the getters answer pyserial's defaults (9600 8N1,
+    no flow control) to a client's query; RTS and DTR start on, as a host's open raises them."""
 
-    cts = True
-    dsr = True
-    cd = True
-    ri = False
-
-    def __init__(self, changed: Callable[[str], None], purge_output: Callable[[], None]) -> None:
+    def __init__(
+        self,
+        changed: Callable[[str], None],
+        lines: Callable[[], ModemLines],
+        purge_output: Callable[[], None],
+        purge_input: Callable[[], None],
+    ) -> None:
         self._changed = changed
+        self._lines = lines
         self._purge_output = purge_output
+        self._purge_input = purge_input
         self.baudrate = 9600
         self.bytesize = 8
         self.parity = serial.PARITY_NONE
         self.stopbits: float = 1
         self.rtscts = False
         self.xonxoff = False
-        self.dtr = self.rts = self.break_condition = False
+        self.dtr = self.rts = True
+        self.break_condition = False
         self.seen: set[str] = set()  # set last: the defaults above are not the client's
 
     def __setattr__(self, name: str, value: Any) -> None:
@@ -139,6 +151,22 @@ class ComPortState:
             if check is not None:
                 self.seen.add(name)
             self._changed(name)
+
+    @property
+    def cts(self) -> bool:
+        return self._lines().cts
+
+    @property
+    def dsr(self) -> bool:
+        return self._lines().dsr
+
+    @property
+    def cd(self) -> bool:
+        return self._lines().cd
+
+    @property
+    def ri(self) -> bool:
+        return self._lines().ri
 
     def host_line(self) -> HostLine:
         """The settings the client set; those it has not set are unseen (None)."""
@@ -161,8 +189,9 @@ class ComPortState:
         self._purge_output()
 
     def reset_output_buffer(self) -> None:
-        """PURGE_DATA 2: host bytes not yet at the device. None wait here: they are on the emulated
-        wire already, which a real port's purge cannot recall either."""
+        """PURGE_DATA 2: host bytes not yet at the device. Those held here for CTS are dropped; those
+        on the emulated wire already stay, as a real port's purge cannot recall them either."""
+        self._purge_input()
 
 
 class _Answers:
@@ -190,11 +219,20 @@ class Rfc2217Transport(NetworkTransport):
         self._dirty = False  # a setting changed since the device was last told
         self._flow_set = False  # ... and it included the flow control, a client's last setting
         self._settle: asyncio.TimerHandle | None = None
+        self._modem: ModemLink | None = None
+        #: the client's data bytes its UART holds back while it waits for CTS
+        self._held_in = bytearray()
+        #: device output held while the client's RTS is off (the device does flow control)
+        self._held_out = bytearray()
 
     def _connected(self) -> None:
         self._host = HostLine()
         self._dirty = self._flow_set = False
-        self._state = ComPortState(self._on_setting, self._purge_output)
+        assert self._sink is not None
+        self._modem = ModemLink(self._sink, self.path, log)
+        self._state = ComPortState(
+            self._on_setting, self._modem.lines, self._purge_output, self._held_in.clear
+        )
         # Its constructor sends the server's opening offers (WILL COM-PORT-OPTION ...).
         # duck-typed as PortManager documents (its stubs ask for `Serial` objects)
         self._manager = rfc2217.PortManager(cast(Any, self._state), cast(Any, _Answers(self._send_raw)))
@@ -203,18 +241,37 @@ class Rfc2217Transport(NetworkTransport):
         if self._settle is not None:
             self._settle.cancel()
             self._settle = None
-        self._manager = self._state = None
+        self._manager = self._state = self._modem = None
+        self._held_out.clear()
+        if self._held_in:  # the connection ended otherwise than by a hang-up (`_hang_up` counts)
+            assert self._sink is not None
+            log.info("%s: %d bytes held back for CTS were discarded", self.path, len(self._held_in))
+            self._sink.input_discarded(len(self._held_in))
+            self._held_in.clear()
 
     def _on_setting(self, name: str) -> None:
-        assert self._state is not None
-        if name in _LINES:
-            log.info("%s: host set %s %s", self.path, name, "on" if getattr(self._state, name) else "off")
+        assert self._state is not None and self._modem is not None
+        if name == "rts":
+            released = bytes(self._held_out) if self._state.rts else b""
+            self._held_out.clear()
+            self._modem.set_rts(self._state.rts, len(released))
+            if released:
+                self._send_raw(self._encode(released))
             return
+        if name == "dtr":
+            self._modem.set_dtr(self._state.dtr)
+            return
+        if name == "break_condition":
+            log.info("%s: host set break %s", self.path, "on" if self._state.break_condition else "off")
+            return
+        if name == "rtscts":
+            self._modem.host_rtscts = self._state.rtscts
         self._dirty = True
         self._flow_set = self._flow_set or name in _FLOW
 
     def _purge_output(self) -> None:
         self._pending.clear()
+        self._held_out.clear()
 
     def _decode(self, raw: bytes) -> bytes | None:
         manager = self._manager
@@ -257,9 +314,83 @@ class Rfc2217Transport(NetworkTransport):
                     self._settle.cancel()
                 assert self._loop is not None
                 self._settle = self._loop.call_later(SETTLE_S, self._apply_settings)
+        assert self._sink is not None and self._modem is not None
         if data:
-            assert self._sink is not None
-            self._sink.host_data(data)
+            if self._held_in or self._modem.input_held():
+                self._held_in += data
+            else:
+                self._sink.host_data(data)
+        if self._held_in:
+            self._pass_held()
+        self._check_lines()
+
+    def _pass_held(self) -> None:
+        """Hand held client bytes to the device once its UART may send, as far as there is room; while
+        it may not, stop reading once the held bytes fill the transmit buffer (telnet options that
+        arrive meanwhile wait in the kernel with the data)."""
+        assert self._sink is not None and self._modem is not None
+        if self._modem.input_held():
+            self._modem.waiting(len(self._held_in))
+            if len(self._held_in) >= HELD_INPUT_LIMIT:
+                self._set_mask(self._mask & ~select.EPOLLIN)
+            return
+        self._modem.released(len(self._held_in))
+        room = max(self._sink.room(), 0)
+        chunk = bytes(self._held_in[:room])
+        del self._held_in[:room]
+        if chunk:
+            self._sink.host_data(chunk)
+        if len(self._held_in) < HELD_INPUT_LIMIT:
+            super().resume_reading()
+
+    def _check_lines(self) -> None:
+        """Tell the client the device's lines if they changed (CTS follows the device's room)."""
+        if self._manager is not None:
+            self._manager.check_modem_lines()
+
+    def resume_reading(self) -> None:
+        if not (len(self._held_in) >= HELD_INPUT_LIMIT and self._modem and self._modem.input_held()):
+            super().resume_reading()
+        assert self._loop is not None
+        self._loop.call_soon(self._room_back)  # not within the runner's call
+
+    def _room_back(self) -> None:
+        if self._manager is None:
+            return
+        if self._held_in:
+            self._pass_held()
+        self._check_lines()
+
+    def _hang_up(self) -> None:
+        """As a network port's hang-up, except that what the client's UART still held back for CTS
+        never reaches the device, nor anything it sent after that."""
+        if self._held_in:
+            self._pass_held()
+        if not self._held_in and not (self._modem is not None and self._modem.input_held()):
+            super()._hang_up()
+            return
+        discarded = len(self._held_in)
+        self._held_in.clear()
+        while self._conn is not None:
+            try:
+                raw = self._conn.recv(DRAIN_CHUNK)
+            except OSError:
+                break
+            data = self._decode(raw) if raw else None
+            if data is None:
+                break
+            discarded += len(data)
+        self._drop_connection(discarded)
+
+    def write(self, data: bytes) -> int:
+        modem = self._modem
+        if modem is None or not modem.output_held():
+            return super().write(data)
+        kept = max(min(len(data), OUTPUT_LIMIT - len(self._held_out)), 0)
+        self._held_out += data[:kept]
+        if kept < len(data):
+            modem.overflowed()
+        return len(data) - kept
 
     def _apply_settings(self) -> None:
         if self._settle is not None:

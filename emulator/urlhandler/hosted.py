@@ -9,17 +9,20 @@ wire has no room for, sleeps until the next instant something is due or its time
 first, then catches up again; in virtual time the same wait moves device time to that instant at
 once. A write waits only while host bytes or device output are still crossing the wire (so something
 is due): on an unpaced line the device takes host bytes as they are handed over, and the write hands
-over its next chunk at once.
+over its next chunk at once. (A host waiting for a CTS the device never asserts is the exception: its
+write waits until its timeout, for ever without one, as on a real port.)
 
 A device is made by opening a `stageemu://PROFILE` URL (the port owns it: closing the port switches
 it off) or by `serve` (a test harness owns it, like a daemon: ports open and close on it while it
 runs). Every device is listed under a key while it runs, so `stageemu://?attach=KEY&channel=NAME`
 opens a port on any of its channels (`url`): the MS2000 TTL REPORT's `aux` beside the main port, or
-the main port of a device a pytest fixture serves. Hosts may read in one thread and write in another
-(pyserial's `ReaderThread`, miniterm): every call holds one condition's lock, and a waiting reader is
-woken whenever another thread writes, changes the line settings, cancels or closes, so it re-computes
-when its reply is due. The in-process control channel (emulator/urlhandler/control.py) goes through
-the same lock (`call`) and takes the device's pushed events from `subscribe`.
+the main port of a device a pytest fixture serves. Each port carries modem lines (lines.py): RTS,
+DTR and the device's CTS, DSR, CD and RI, with the bytes each side's flow control holds. Hosts may
+read in one thread and write in another (pyserial's `ReaderThread`, miniterm): every call holds one
+condition's lock, and a waiting reader is woken whenever another thread writes, changes the line
+settings or the modem lines, cancels or closes, so it re-computes when its reply is due. The
+in-process control channel (emulator/urlhandler/control.py) goes through the same lock (`call`) and
+takes the device's pushed events from `subscribe`.
 """
 
 from __future__ import annotations
@@ -35,11 +38,11 @@ from typing import Any, TypeVar
 from serial.serialutil import SerialException, SerialTimeoutException
 
 from emulator import registry
-from emulator.device import MAIN, HostLine, HostServices, Store, StoreReport
+from emulator.device import MAIN, HostLine, HostServices, ModemLines, Store, StoreReport
 from emulator.nvstore import ReportingStore, StateInUse
 from emulator.profile import ProfileError, load_profile
 from emulator.runner import DeviceRunner
-from emulator.transports.inprocess import InProcessTransport
+from emulator.urlhandler.lines import ModemTransport
 from emulator.urlhandler.timebase import Deadline, RealTime, VirtualTime
 from emulator.urlhandler.url import VIRTUAL, UrlOptions
 
@@ -73,7 +76,7 @@ def served(key: str) -> HostedDevice:
 class _Port:
     """One channel's in-process port and what its host asked of it."""
 
-    transport: InProcessTransport
+    transport: ModemTransport
     opened: bool = False
     read_cancelled: bool = False
     write_cancelled: bool = False
@@ -112,7 +115,7 @@ class HostedDevice:
             raise ValueError(f"{url!r}: {exc}; give state= another directory, or none") from None
         self._ports: dict[str, _Port] = {}
         for channel in self.runner.channels:
-            transport = InProcessTransport(url if channel == MAIN else f"{url}#{channel}")
+            transport = ModemTransport(url if channel == MAIN else f"{url}#{channel}")
             self.runner.attach_transport(channel, transport, options.timing)
             self._ports[channel] = _Port(transport)
         self._changed = threading.Condition()
@@ -217,16 +220,19 @@ class HostedDevice:
         return sent
 
     def drain(self, channel: str) -> None:
-        """Wait until every byte written has crossed the wire (tcdrain)."""
+        """Wait until every byte written has crossed the wire (tcdrain): also those held for CTS, so
+        a host that waits for a CTS the device never asserts waits for ever, as on a real port."""
         port = self._port(channel)
-        self.wait_for(lambda: not self.runner.channels[channel].from_host or port.write_cancelled, NEVER)
+        wire = self.runner.channels[channel].from_host
+        self.wait_for(lambda: not (wire or port.transport.held_in) or port.write_cancelled, NEVER)
 
     def in_waiting(self, channel: str) -> int:
         return self.call(lambda: len(self._port(channel).transport.received))
 
     def out_waiting(self, channel: str) -> int:
-        """Bytes written that have not crossed the wire yet."""
-        return self.call(lambda: len(self.runner.channels[channel].from_host))
+        """Bytes written that have not crossed the wire yet (those held for CTS included)."""
+        port = self._port(channel)
+        return self.call(lambda: len(self.runner.channels[channel].from_host) + len(port.transport.held_in))
 
     def discard_input(self, channel: str) -> None:
         """Drop what has arrived and is unread (bytes still on the wire arrive later)."""
@@ -234,11 +240,33 @@ class HostedDevice:
 
     def discard_output(self, channel: str) -> None:
         """Drop what was written and has not crossed the wire yet (tcflush TCOFLUSH)."""
-        self.call(self.runner.channels[channel].from_host.clear)
+        port = self._port(channel)
+
+        def discard() -> None:
+            self.runner.channels[channel].from_host.clear()
+            port.transport.discard_held_input()
+
+        self.call(discard)
 
     def set_line(self, channel: str, host: HostLine) -> None:
         """The host changed its line settings: later bytes in both directions are framed by them."""
         self.call(lambda: self._port(channel).transport.change_line(host))
+
+    def set_control(self, channel: str, rts: bool | None = None, dtr: bool | None = None) -> None:
+        """The host set its RTS or DTR line."""
+        transport = self._port(channel).transport
+
+        def apply() -> None:
+            if rts is not None:
+                transport.set_rts(rts)
+            if dtr is not None:
+                transport.set_dtr(dtr)
+
+        self.call(apply)
+
+    def modem_lines(self, channel: str) -> ModemLines:
+        """The device's CTS, DSR, CD and RI as the host reads them now."""
+        return self.call(self._port(channel).transport.lines)
 
     def cancel_read(self, channel: str) -> None:
         with self._lock():
@@ -338,6 +366,9 @@ class HostedDevice:
             )
         if not self.time.virtual:
             self.runner.pump()
+        for port in self._ports.values():
+            if port.transport.held_in:  # the host's bytes that waited for CTS, once they may cross
+                port.transport.pass_held()
 
     def _wait(self, limit: float | None) -> None:
         """Until the next thing is due, `limit` host seconds pass, or another thread wakes us: a

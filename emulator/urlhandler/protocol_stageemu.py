@@ -7,7 +7,9 @@ Each open builds a factory-fresh device from the profile (emulator/urlhandler/ur
 form) and closes it with the port. The host's line settings reach the model as they would through a
 daemon's port, and more fully: a PTY hides parity and data bits, here they are known, so a host at
 the wrong baud rate, data bits or parity gets the garbled bytes the real device would give it.
-Nothing on this path needs a pseudo-terminal, termios or fcntl: it runs on Windows and macOS too.
+The port carries modem lines as an RFC 2217 port does (emulator/transports/modem.py): `rts` and
+`dtr` reach the device, `cts`, `dsr`, `cd` and `ri` are the device's. Nothing on this path needs a
+pseudo-terminal, termios or fcntl: it runs on Windows and macOS too.
 """
 
 from __future__ import annotations
@@ -67,6 +69,8 @@ class Serial(SerialBase):
         else:
             self._device, self._owner = HostedDevice(url, options, self._line), True
         self.is_open = True
+        # a driver raises RTS and DTR at open; pyserial keeps what was set before opening
+        self._device.set_control(self._channel, rts=bool(self.rts), dtr=bool(self.dtr))
 
     def close(self) -> None:
         for other in self._others:
@@ -170,36 +174,31 @@ class Serial(SerialBase):
     def cancel_write(self) -> None:
         self._open_device().cancel_write(self._channel)
 
-    # ---- modem lines ----------------------------------------------------------------------------
-    # The models have no modem-line inputs (RTS/CTS flow control reaches them as a line setting),
-    # so what the host drives goes nowhere, and the device side reads as a powered controller
-    # ready to receive: CTS and DSR asserted, no carrier, no ring.
+    # ---- modem lines --------------------------------------------------------------------------
+    # What the host drives reaches the device's port; with RTS/CTS flow control on the device's side
+    # (the MP-285A's USB port) RTS off holds the device's output. The models have no break detection.
 
     def _update_rts_state(self) -> None:
-        """RTS goes nowhere (see above)."""
+        self._open_device().set_control(self._channel, rts=bool(self.rts))
 
     def _update_dtr_state(self) -> None:
-        """DTR goes nowhere (see above)."""
+        self._open_device().set_control(self._channel, dtr=bool(self.dtr))
 
     def _update_break_state(self) -> None:
         """A break goes nowhere: the models have no break detection."""
 
     @property
     def cts(self) -> bool:
-        self._open_device()
-        return True
+        return self._open_device().modem_lines(self._channel).cts
 
     @property
     def dsr(self) -> bool:
-        self._open_device()
-        return True
+        return self._open_device().modem_lines(self._channel).dsr
 
     @property
     def cd(self) -> bool:
-        self._open_device()
-        return False
+        return self._open_device().modem_lines(self._channel).cd
 
     @property
     def ri(self) -> bool:
-        self._open_device()
-        return False
+        return self._open_device().modem_lines(self._channel).ri

@@ -4,7 +4,9 @@ Tests open the port with pyserial exactly as a host program would. `open_target(
 returns a `Target`; on the emulator each call gets a factory-fresh device: by default one served in
 this process in virtual time (device time passes at once whenever the host waits, so every instant
 is exact and no test waits for the wall clock), with `--target daemon` one of a daemon's
-pseudo-terminals in real time (same daemon reused per profile/overrides/timing). A test's clock is
+pseudo-terminals in real time (same daemon reused per profile/overrides/timing), with `--target
+serial` a daemon's serial port (`transport: serial`) on one end of a null-modem cable of two
+pseudo-terminals (tests/support/nullmodem.py), the test opening the other end. A test's clock is
 `Target.monotonic()`: the device's in virtual time, the wall clock's otherwise. On a real port the
 profile only supplies line settings and tests that ask for non-default profiles or overrides are
 skipped (mark tests that need the control channel `@pytest.mark.control`, exact timing
@@ -40,6 +42,7 @@ from emulator.urlhandler.control import HostedControl
 from emulator.urlhandler.hosted import HostedDevice, serve
 from emulator.urlhandler.url import SCHEME, VIRTUAL, UrlOptions
 from tests.support.daemon import RunningDaemon, start_daemon
+from tests.support.nullmodem import NullModem
 
 
 class Rfc2217Port(rfc2217.Serial):
@@ -164,6 +167,49 @@ def carries_parity(config: pytest.Config) -> bool:
 #: the skip where they do not
 NO_PARITY = "needs a port that carries parity (an RFC 2217 transport, a stageemu:// URL or a real port)"
 
+#: Vectors `--target serial` cannot carry, by test (name, or name with its parameters): a serial line
+#: shows the emulator nothing of the host's settings (a host at other settings is garbled by the line
+#: itself), and a cable of pseudo-terminals cannot mark a framing error to the emulator as a UART does
+HOST_UNSEEN = (
+    "needs the host's settings seen by the emulator: not on a serial line (the line garbles by itself)"
+)
+UNMARKED = "needs framing errors marked to the emulator: not on a serial line of ptys (a UART marks them)"
+FROZEN_WIRE = (
+    "steps device time by the control channel while its bytes are still on the line: a serial line "
+    "carries them in wall time, so they cross at other device instants than the vector's"
+)
+SERIAL_LIMITS = {
+    "test_tv_003_mismatch_is_logged_once": HOST_UNSEEN,
+    "test_tv_003_line_mismatch_ignore_passes_bytes": HOST_UNSEEN,
+    "test_tv_005_usb_without_rtscts_loses_bytes_while_busy": HOST_UNSEEN,
+    "test_tv_117_dip_baud_read_at_power_up": HOST_UNSEEN,  # declares the host at the device's baud
+    "test_tv_003_host_at_another_baud_gets_no_reply[4800-31]": UNMARKED,
+    "test_tv_034_second_move_is_held": FROZEN_WIRE,
+    "test_tv_037_lf_after_a_move[terminators_interrupt_move]": FROZEN_WIRE,
+    "test_tv_167_focus_curve_states": FROZEN_WIRE,  # TV-166 sweeps the same curve in real time
+}
+
+
+def carries_modem_lines(config: pytest.Config) -> bool:
+    """Whether the device's modem lines reach the host, and the host's RTS the device: in virtual
+    time and over a `stageemu://` or `rfc2217://` port; not on a pseudo-terminal (`--target daemon`)
+    or a raw TCP socket, which carry none, nor on a real port given as a device path, whose cable
+    may not carry them (three wires, no null-modem wiring)."""
+    port = config.getoption("--port")
+    if not port:
+        return bool(config.getoption("--target") == "virtual")
+    return bool(port.startswith(("stageemu://", "rfc2217://")))
+
+
+#: the skip of tests marked `modem` where they do not
+NO_MODEM = "needs modem lines (an RFC 2217 port, a stageemu:// URL or the default in-process target)"
+
+
+@pytest.fixture(autouse=True)
+def _skip_without_modem_lines(request: pytest.FixtureRequest) -> None:
+    if request.node.get_closest_marker("modem") and not carries_modem_lines(request.config):
+        pytest.skip(NO_MODEM)
+
 
 class DaemonPool:
     """One emulator daemon per (profile, overrides, timing), started on first use."""
@@ -171,6 +217,14 @@ class DaemonPool:
     def __init__(self, workdir: Path) -> None:
         self._workdir = workdir
         self._daemons: dict[str, RunningDaemon] = {}
+
+    def main_port(self, workdir: Path, timing: str) -> dict[str, Any]:
+        """The rig entry of the device's main port."""
+        return {"channel": "main", "timing": timing}
+
+    def host_path(self, daemon: RunningDaemon) -> str:
+        """What the host opens for the main port."""
+        return daemon.port("dut")
 
     def get(self, profile: str, overrides: dict[str, Any] | None, timing: str) -> RunningDaemon:
         key = json.dumps([profile, overrides, timing], sort_keys=True)
@@ -188,7 +242,12 @@ class DaemonPool:
                                 "name": "dut",
                                 "profile": profile,
                                 "overrides": overrides,
-                                "ports": [{"channel": c, "timing": timing} for c in channels],
+                                "ports": [
+                                    self.main_port(workdir, timing)
+                                    if c == "main"
+                                    else {"channel": c, "timing": timing}
+                                    for c in channels
+                                ],
                             }
                         ],
                     }
@@ -202,9 +261,33 @@ class DaemonPool:
             daemon.stop()
 
 
+class SerialPool(DaemonPool):
+    """`--target serial`: each daemon serves its main port on one end of a null-modem cable (a
+    bridge thread in this process); the host opens the other end."""
+
+    def __init__(self, workdir: Path) -> None:
+        super().__init__(workdir)
+        self._cables: dict[Path, NullModem] = {}
+
+    def main_port(self, workdir: Path, timing: str) -> dict[str, Any]:
+        cable = self._cables[workdir] = NullModem(workdir / "cable").start()
+        return {"channel": "main", "transport": "serial", "device": str(cable.device_link), "timing": timing}
+
+    def host_path(self, daemon: RunningDaemon) -> str:
+        return str(self._cables[daemon.workdir].host_link)
+
+    def stop(self) -> None:
+        super().stop()
+        for cable in self._cables.values():
+            cable.close()
+
+
 @pytest.fixture(scope="session")
-def daemon_pool(tmp_path_factory: pytest.TempPathFactory) -> Iterator[DaemonPool]:
-    pool = DaemonPool(tmp_path_factory.mktemp("conformance"))
+def daemon_pool(
+    request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory
+) -> Iterator[DaemonPool]:
+    kind = SerialPool if request.config.getoption("--target") == "serial" else DaemonPool
+    pool = kind(tmp_path_factory.mktemp("conformance"))
     yield pool
     pool.stop()
 
@@ -268,6 +351,11 @@ def open_target(
         elif request.config.getoption("--target") == "virtual":
             target = virtual_target(profile, overrides, timing, tmp_path_factory)
         else:
+            if isinstance(daemon_pool, SerialPool):
+                node = request.node
+                limit = SERIAL_LIMITS.get(node.name) or SERIAL_LIMITS.get(getattr(node, "originalname", ""))
+                if limit:
+                    pytest.skip(limit)
             daemon = daemon_pool.get(profile, overrides, timing)
             control = daemon.control()
             control.request({"op": "clock", "scale": 1.0})
@@ -275,7 +363,8 @@ def open_target(
             control.fault("dut", "clear")
             control.reset("dut")
             aux = next((p["path"] for p in daemon.ports if p["port"] == "aux"), None)
-            target = Target(daemon.port("dut"), loaded.family, loaded, False, "dut", control, aux_path=aux)
+            path = daemon_pool.host_path(daemon)
+            target = Target(path, loaded.family, loaded, False, "dut", control, aux_path=aux)
         opened.append(target)
         return target
 

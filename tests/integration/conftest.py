@@ -6,8 +6,9 @@ transports a host program meets, in real time: so each family's fixed smoke samp
 (`@pytest.mark.smoke`: framing, pacing, character timing, errors, a control-channel use, and the
 family's recorded sessions) also runs over a daemon's RFC 2217 port in hardware mode
 (`pytest tests/conformance/F -m smoke --port rfc2217://... --device F`, against
-`serve --profile F --rfc2217 127.0.0.1:0`) and over the pseudo-terminals of a daemon pool
-(`pytest tests/conformance/F -m smoke --target daemon`). Each run takes some seconds of wall time
+`serve --profile F --rfc2217 127.0.0.1:0`), over the pseudo-terminals of a daemon pool
+(`pytest tests/conformance/F -m smoke --target daemon`), and over a daemon pool's serial ports on
+null-modem cables of two pseudo-terminals (`--target serial`). Each run takes some seconds of wall time
 (device time passes in real time) but little CPU, so each starts early, in its own pytest process,
 and runs while the rest of the session does (fixture `smoke_runs`, test_network_ports.py, says how
 in one process and under pytest-xdist). Nothing starts
@@ -31,8 +32,9 @@ from tests.conformance.test_sessions import session_id
 from tests.support.daemon import ROOT, RunningDaemon, start_daemon
 
 FIXTURE = "smoke_runs"
-#: the transports a smoke sample runs over: a daemon's RFC 2217 port, a daemon pool's PTYs
-RFC2217, PTY = "rfc2217", "pty"
+#: the transports a smoke sample runs over: a daemon's RFC 2217 port, a daemon pool's PTYs, a
+#: daemon pool's serial ports (each on a null-modem cable, tests/support/nullmodem.py)
+RFC2217, PTY, SERIAL = "rfc2217", "pty", "serial"
 #: a run that has not finished this long after it started has hung
 RUN_TIMEOUT_S = 300.0
 
@@ -90,7 +92,7 @@ class SmokeRuns:
 
     def start(self, family: str, transport: str) -> None:
         workdir = self.workdir / f"{family}-{transport}"
-        args = ["--target", "daemon"]
+        args = ["--target", SERIAL if transport == SERIAL else "daemon"]
         daemon = None
         if transport == RFC2217:
             try:

@@ -12,7 +12,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
-from emulator.device import LineSettings
+from emulator.device import LineSettings, ModemLines
 from emulator.transports.pty import EXTPROC, OUTPUT_LIMIT, READ_CHUNK, PtyTransport
 
 TIMEOUT = 5.0
@@ -60,6 +60,13 @@ class Sink:
     def input_discarded(self, count: int) -> None:
         self.discarded += count
         self.changed.set()
+
+    def device_line(self) -> LineSettings:
+        return LineSettings(9600, 8, "none", 1, False, False)
+
+    def modem_lines(self) -> ModemLines:
+        """A device ready to receive, for transports that carry modem lines."""
+        return ModemLines(cts=True, dsr=True)
 
 
 async def until(sink: Sink, condition: Callable[[], bool]) -> None:

@@ -108,6 +108,24 @@ def test_pace_line_false_is_fast_even_on_realistic_port() -> None:
     assert port.take() == b"x\r"
 
 
+class WireTransport(MemoryTransport):
+    """A port whose UARTs pace the line themselves, as a serial port's do."""
+
+    wire_paces = True
+
+
+def test_a_line_its_uarts_pace_is_not_paced_again() -> None:
+    # A serial port: the driver delivers the host's bytes once received, and sends the device's
+    # bytes at the baud rate from the instant it gets them. Pacing either direction here as well
+    # would put every byte one character time (or more) late.
+    h = make(REALISTIC, port=WireTransport())
+    h.port.send(b"E hi\r")
+    assert [t for t, _ in h.runner.device.received] == [0.0]
+    assert h.port.take() == b"hi\r"
+    h.port.send(b"B 100\r")
+    assert h.port.take() == b"x" * 100
+
+
 def test_no_output_while_detached_and_host_settings_reach_device() -> None:
     h = make(FAST)
     runner = h.runner

@@ -188,15 +188,6 @@ def test_cancel_read_ends_a_read_without_timeout(open_url: OpenUrl) -> None:
     assert got == [b""]
 
 
-def test_modem_lines_read_as_a_ready_device(open_url: OpenUrl) -> None:
-    port = open_url("stageemu://mp285?timing=fast")
-    port.rts = False
-    port.dtr = False
-    port.send_break(0.01)
-    assert (port.cts, port.dsr, port.cd, port.ri) == (True, True, False, False)
-    assert ask(port, b"c\r", 13) == bytes(12) + b"\r"
-
-
 def test_a_profile_file_and_a_state_directory(open_url: OpenUrl, tmp_path: Path) -> None:
     profile = tmp_path / "stage.yaml"
     profile.write_text("spec: 1\ndevice: ms2000\nextends: ms2000\ndescription: my stage\n")

@@ -21,7 +21,17 @@ from collections.abc import Callable
 from fractions import Fraction
 from typing import Any
 
-from emulator.device import GARBLED, REPLY, UNSOLICITED, ControlError, Emission, HostLine, LineSettings, Notes
+from emulator.device import (
+    GARBLED,
+    REPLY,
+    UNSOLICITED,
+    ControlError,
+    Emission,
+    HostLine,
+    LineSettings,
+    ModemLines,
+    Notes,
+)
 from emulator.devices.mp285.schema import BAUDS, Mp285Controller, Mp285Knobs
 from emulator.line import char_time, mismatches
 from emulator.uart import HALF, Char, Framing, Wire
@@ -32,6 +42,13 @@ OnChar = Callable[[int, bool, float], None]
 FRAMING_SETTINGS = ("baud", "data_bits", "parity", "stop_bits")
 #: a host byte completing within this of the end of a transmission counts as after it (float clocks)
 TIME_TOLERANCE = 1e-9
+#: MP-1: the RS-232 port has three wires (TxD, RxD, ground): no modem line is ever asserted
+RS232_LINES = ModemLines()
+#: MP-2, MP-7: on the USB virtual COM port CTS is the device's flow control, driven by the transport
+#: from its room for input (ModemLines); DSR, CD and RI are never asserted [inferred: the quick
+#: reference asks the host for RTS/CTS alone and names no other line; unused modem inputs of a
+#: USB-serial bridge read as not asserted]
+USB_LINES = ModemLines(cts=True)
 #: what the front-panel menu sets on the RS-232 port (MP-1)
 MENU: dict[str, tuple[Any, ...]] = {
     "baud": BAUDS,
@@ -183,6 +200,9 @@ class Line:
         if host.xonxoff:
             effects.append("the device never sends XON/XOFF; software flow control has no effect")
         return "; ".join(effects)
+
+    def modem_lines(self) -> ModemLines:
+        return USB_LINES if self.usb else RS232_LINES
 
     def snapshot(self) -> dict[str, Any]:
         return {

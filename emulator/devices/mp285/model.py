@@ -25,7 +25,17 @@ import enum
 import math
 from typing import Any
 
-from emulator.device import MAIN, ControlError, Device, Emission, HostLine, HostServices, LineSettings
+from emulator.device import (
+    FRAMING_ERROR,
+    MAIN,
+    ControlError,
+    Device,
+    Emission,
+    HostLine,
+    HostServices,
+    LineSettings,
+    ModemLines,
+)
 from emulator.devices.mp285.commands import run_item
 from emulator.devices.mp285.faults import Crash, Roe, crash_signature, roe_turn
 from emulator.devices.mp285.line import Line
@@ -115,6 +125,11 @@ class Mp285Device(Device):
         for byte in data:
             on_char(byte, False, now)
 
+    def _receive_line_error(self, byte: int, kind: str, now: float, channel: str) -> None:
+        # a real line's error (a serial port): MP-6 item 4, a framing error is not a data byte
+        # (error '1'); item 3, a parity error is ignored and the data bits kept
+        self._on_char(byte, kind == FRAMING_ERROR, now)
+
     def _advance(self, now: float) -> None:
         while True:
             event = self._next_event()
@@ -136,6 +151,9 @@ class Mp285Device(Device):
 
     def mismatch_effect(self, host: HostLine, channel: str = MAIN) -> str:
         return self._line.mismatch_effect(host)
+
+    def modem_lines(self, channel: str = MAIN) -> ModemLines:
+        return self._line.modem_lines()  # MP-1, MP-2
 
     def snapshot(self, now: float) -> dict[str, Any]:
         velocity = self.velocity

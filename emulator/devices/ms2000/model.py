@@ -31,6 +31,7 @@ from emulator.device import (
     HostLine,
     HostServices,
     LineSettings,
+    ModemLines,
 )
 from emulator.devices.ms2000.activity import LOWER, UPPER, Activity
 from emulator.devices.ms2000.axis import Axis
@@ -177,6 +178,10 @@ class Ms2000Device(Device):
         if channel != MAIN:
             return "the auxiliary port sends at the main port's settings regardless (MS-5)"
         return self.line.mismatch_effect(host)
+
+    def modem_lines(self, channel: str = MAIN) -> ModemLines:
+        # MS-1: CTS and DSR are never asserted; nothing drives CD or RI either [choice], on either port
+        return ModemLines()
 
     def _receive(self, data: bytes, now: float, channel: str) -> None:
         if channel != MAIN:
