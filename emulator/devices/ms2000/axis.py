@@ -14,23 +14,22 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from emulator.devices.ms2000 import trajectory
-from emulator.devices.ms2000.activity import BUSY_ACTIVITIES, LIMIT_CODES, LOWER, UPPER, Activity
+from emulator.devices.ms2000.activity import BUSY_ACTIVITIES, LIMIT_CODES, LOWER, UPPER, Activity, MoveGroup
 from emulator.devices.ms2000.drift import ServoHold
 from emulator.devices.ms2000.settings import AxisAuto, AxisSettings
 from emulator.devices.ms2000.trajectory import Trajectory
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.model import MoveGroup
-    from emulator.devices.ms2000.modules.host import AxisHost
+    from emulator.devices.ms2000.axis_host import AxisHost
     from emulator.devices.ms2000.scheduler import Timer
-    from emulator.devices.ms2000.schema import Ms2000Axis
+    from emulator.devices.ms2000.sections import Ms2000Axis
 
 
 class Axis:
     def __init__(
         self,
-        host: AxisHost,
+        host: AxisHost[Axis],
         index: int,
         letter: str,
         cfg: Ms2000Axis,
@@ -55,7 +54,7 @@ class Axis:
         self.hold_until: float | None = None
         self.clamped: str | None = None
         self.enabled = True
-        self.group: MoveGroup | None = None
+        self.group: MoveGroup[Axis] | None = None
         self.velocity_cmd = 0.0
         self.switch = {UPPER: False, LOWER: False}
         self.servo = ServoHold(self)

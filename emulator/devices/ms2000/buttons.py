@@ -10,10 +10,12 @@ numbers follow Appendix B of the specification: 0 none, 1 zero all axes, 2 move 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.model import Ms2000Device
+    from emulator.devices.ms2000.modules.moduleset import ModuleSet
+    from emulator.devices.ms2000.scheduler import Timer
+    from emulator.devices.ms2000.settings import CardAuto, CardSettings
 
 NAMES = ("at", "home", "joystick", "zero")
 NORMAL, LONG, EXTRA = "normal", "long", "extra"
@@ -44,8 +46,34 @@ def classify(ms: float) -> str:
     return LONG if ms < 3000 else EXTRA
 
 
+class ButtonsHost(Protocol):
+    """All the front panel uses of its controller."""
+
+    @property
+    def card(self) -> CardSettings:
+        """`BE`, `BZ` and `VB` (MS-85, MS-86, MS-96)."""
+
+    @property
+    def card_auto(self) -> CardAuto:
+        """`BCA` (MS-86)."""
+
+    @property
+    def modules(self) -> ModuleSet:
+        """Presses and `BE F` functions the modules claim."""
+
+    def at(self, due: float, action: Callable[[float], None]) -> Timer: ...
+
+    def unsolicited(self, text: str, t: float) -> None: ...
+
+    def halt_all(self, t: float) -> bool: ...
+
+    def zero_all(self, t: float) -> None: ...
+
+    def move_all_to_zero(self, t: float) -> None: ...
+
+
 class Buttons:
-    def __init__(self, ctl: Ms2000Device) -> None:
+    def __init__(self, ctl: ButtonsHost) -> None:
         self.ctl = ctl
         self.flags = 0
         self.fast = True

@@ -10,13 +10,10 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import Protocol, TypeVar
 
 from protocols.ms2000 import CommandSpec, ErrorCode, Fmt, Item, Kind, Shape, format_items, format_value
 from protocols.rounding import round_half_away
-
-if TYPE_CHECKING:
-    from emulator.devices.ms2000.axis import Axis
 
 #: order of pseudo-axis parameters in replies (MS-29)
 PSEUDO_ORDER = "XYZFTRM"
@@ -69,6 +66,10 @@ class Call:
 
     def letters(self) -> list[str]:
         return [i.letter for i in self.items if i.letter is not None]
+
+
+#: a command's handler, base or module
+Handler = Callable[[Call], "Reply | Pending"]
 
 
 @dataclass(frozen=True)
@@ -128,7 +129,21 @@ def one_of(*allowed: float) -> Callable[[float], float]:
     return check
 
 
-def axis_items(call: Call, axes: Sequence[Axis], require: bool = True) -> list[tuple[Axis, Item]]:
+class Lettered(Protocol):
+    """What `axis_items` needs of an axis."""
+
+    @property
+    def letter(self) -> str: ...
+
+    @property
+    def index(self) -> int:
+        """Hardware order."""
+
+
+A = TypeVar("A", bound=Lettered)
+
+
+def axis_items(call: Call, axes: Sequence[A], require: bool = True) -> list[tuple[A, Item]]:
     """Motor-axis items in hardware order, the last of a repeated letter winning (MS-27, MS-29);
     no items `:N-3`, a letter that is no motor axis `:N-2`, a malformed item `:N-6` (MS-30, MS-31)."""
     items = [i for i in call.items if i.kind is not Kind.NUMBER]
@@ -136,7 +151,7 @@ def axis_items(call: Call, axes: Sequence[Axis], require: bool = True) -> list[t
         raise CommandError(ErrorCode.MISSING_PARAMETERS)
     by_letter = {a.letter: a for a in axes}
     codes = []
-    chosen: dict[Axis, Item] = {}
+    chosen: dict[A, Item] = {}
     for item in items:
         axis = by_letter.get(item.letter or "")
         if item.kind is Kind.MALFORMED:

@@ -3,19 +3,47 @@
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Protocol
 
-from emulator.devices.ms2000.schema import INPUT_DEVICES
+from emulator.devices.ms2000.sections import INPUT_DEVICES
 from emulator.devices.ms2000.status import move_stat
 from protocols.ms2000 import BU_CMDS, BU_MOTOR_AXES, INFO_LEFT_WIDTH, fixed
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.model import Ms2000Device
+    from emulator.devices.ms2000.modules.moduleset import ModuleSet
+    from emulator.devices.ms2000.schema import Ms2000Config
+    from emulator.devices.ms2000.sections import Ms2000Knobs
+    from emulator.devices.ms2000.settings import CardSettings
 
 LABEL_WIDTH = 13
 VALUE_WIDTH = 10
+
+
+class Reported(Protocol):
+    """All the reports read of their controller."""
+
+    @property
+    def cfg(self) -> Ms2000Config: ...
+
+    @property
+    def knobs(self) -> Ms2000Knobs: ...
+
+    @property
+    def card(self) -> CardSettings: ...
+
+    @property
+    def axes(self) -> Sequence[Axis]: ...
+
+    @property
+    def modules(self) -> ModuleSet:
+        """Their `BU X` lines."""
+
+    def manual_inverted(self, axis: Axis) -> bool: ...
+
+    def left_char(self, axis: Axis, t: float) -> str: ...
 
 
 def _item(label: str, value: str, suffix: str = "") -> str:
@@ -26,7 +54,7 @@ def _row(left: str, right: str) -> str:
     return f"{left:<{INFO_LEFT_WIDTH}}{right}"
 
 
-def info_block(ctl: Ms2000Device, axis: Axis, t: float) -> list[str]:
+def info_block(ctl: Reported, axis: Axis, t: float) -> list[str]:
     """The INFO report of one axis: 21 rows of two items, left item padded to 33 characters."""
     s = axis.s
     c = s.counts_per_mm
@@ -108,7 +136,7 @@ def info_block(ctl: Ms2000Device, axis: Axis, t: float) -> list[str]:
     ]
 
 
-def build_lines(ctl: Ms2000Device) -> list[str]:
+def build_lines(ctl: Reported) -> list[str]:
     """BU X (MS-102): build name, axes, command letters, boot loader, hardware, one line per module."""
     cfg = ctl.cfg
     lines = [

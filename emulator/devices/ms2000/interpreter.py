@@ -12,17 +12,19 @@ names the line each reply answers.
 from __future__ import annotations
 
 from collections import deque
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Protocol
 
-from emulator.device import FRAME, LOST, STRAY
-from emulator.devices.ms2000.calls import Call, CommandError, Pending, Reply
-from emulator.devices.ms2000.commands.base import Handler
+from emulator.device import FRAME, LOST, STRAY, Notes
+from emulator.devices.ms2000.calls import Call, CommandError, Handler, Pending, Reply
 from protocols import ms2000 as proto
 from protocols.ms2000 import ErrorCode
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.model import Ms2000Device
-    from emulator.devices.ms2000.scheduler import Timer
+    from emulator.devices.ms2000.lowlevel import LowLevel
+    from emulator.devices.ms2000.scheduler import Scheduler, Timer
+    from emulator.devices.ms2000.schema import Ms2000Config
+    from emulator.devices.ms2000.sections import Ms2000Knobs
+    from emulator.devices.ms2000.settings import CardSettings
 
 _CONTROL_BYTE = bytes((proto.CONTROL,))
 #: a line's command (None: unknown), its items and the raw text of its arguments
@@ -42,8 +44,48 @@ CONTROL_SEQUENCES = {
 }
 
 
+class Resets(Protocol):
+    def software_reset(self, t: float) -> None:
+        """`~` or `RESET` (MS-112)."""
+
+
+class InterpreterHost(Protocol):
+    """All the command line uses of its controller."""
+
+    @property
+    def now(self) -> float:
+        """Device time of the last step (a line dropped outside a step is noted then)."""
+
+    @property
+    def cfg(self) -> Ms2000Config: ...
+
+    @property
+    def knobs(self) -> Ms2000Knobs: ...
+
+    @property
+    def card(self) -> CardSettings:
+        """`VB` flags and decimals; `\\` and `/` of low-level mode set the decimals (§8)."""
+
+    @property
+    def notes(self) -> Notes: ...
+
+    @property
+    def scheduler(self) -> Scheduler:
+        """A reply's due time; the timers due as a line completes."""
+
+    @property
+    def low(self) -> LowLevel: ...
+
+    @property
+    def power(self) -> Resets: ...
+
+    def error(self, code: int) -> Reply: ...
+
+    def send_raw(self, data: bytes, t: float, to: str | None = None) -> None: ...
+
+
 class Interpreter:
-    def __init__(self, ctl: Ms2000Device, handlers: dict[str, Handler]) -> None:
+    def __init__(self, ctl: InterpreterHost, handlers: dict[str, Handler]) -> None:
         self.ctl = ctl
         self.handlers = handlers
         self.low_level = False

@@ -4,24 +4,49 @@ each frame is noted with its bytes (`frame`, or `stray` for one the controller i
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Protocol
 
-from emulator.device import FRAME, STRAY
+from emulator.device import FRAME, STRAY, Notes
 from emulator.devices.ms2000.status import status_byte
 from protocols.ms2000 import LLCommand, LLFrame, LLFrameDecoder, decode_int24, encode_int24
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.model import Ms2000Device
+    from emulator.devices.ms2000.sections import Ms2000Knobs
 
 TENTHS_PER_MM = 10000
 #: default step of `+`/`-` in tenths of a micron (10 µm) [choice] (MS-121)
 DEFAULT_INCREMENT = 100
 
 
+class LowLevelHost(Protocol):
+    """All low-level mode uses of its controller."""
+
+    @property
+    def axes(self) -> Sequence[Axis]: ...
+
+    @property
+    def knobs(self) -> Ms2000Knobs: ...
+
+    @property
+    def notes(self) -> Notes:
+        """Input notes for the traffic log, kept only while explaining."""
+
+    def send_raw(self, data: bytes, t: float, to: str | None = None) -> None: ...
+
+    def start_moves(self, goals: list[tuple[Axis, float]], t: float) -> None: ...
+
+    def relative_goal(self, axis: Axis, delta_mm: float, t: float) -> float: ...
+
+    def enable_motor(self, axis: Axis, t: float) -> None: ...
+
+    def set_manual_enabled(self, axis: Axis, enabled: bool, t: float) -> None: ...
+
+
 class LowLevel:
-    def __init__(self, ctl: Ms2000Device) -> None:
+    def __init__(self, ctl: LowLevelHost) -> None:
         self.ctl = ctl
         self.decoder = LLFrameDecoder()
         self.increments: dict[str, int] = {}

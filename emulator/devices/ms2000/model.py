@@ -2,11 +2,14 @@
 
 This file wires the parts together and owns what they share: time (the scheduler), the axes and the
 move groups with their completion effects, manual inputs, output and the host's line settings. The
-parts are collaborators, each given the controller: the command line in interpreter.py, power,
-reset and flash in power.py, the control channel in surface.py, command handlers in commands/,
-low-level frames in lowlevel.py, reports in info.py, buttons in buttons.py, TTL in ttl.py. Axes see
-the controller as an `AxisHost` (axis.py) and firmware modules as a `ModuleHost` (modules/host.py);
-module hooks are called only through `self.modules`, a ModuleSet (modules/moduleset.py).
+parts are collaborators, each given the controller as a narrow Protocol of what it uses, declared in
+its own file: the command line in interpreter.py (`InterpreterHost`), power, reset and flash in
+power.py (`PowerHost`), the control channel in surface.py (`Surfaced`), command handlers in
+commands/ (`CommandsHost`), low-level frames in lowlevel.py (`LowLevelHost`), reports in info.py
+(`Reported`), buttons in buttons.py (`ButtonsHost`), TTL in ttl.py (`TtlHost`), the serial line in
+serial_line.py (`LineOwner`). Axes see the controller as an `AxisHost` (axis_host.py) and firmware
+modules as a `ModuleHost` (modules/host.py); modules are reached only through `self.modules`, a
+ModuleSet (modules/moduleset.py), by events and capability queries.
 
 While explaining (a traffic log is kept) the interpreter and the low-level decoder note each unit of
 input, `_receive` notes garbled and silenced input, and `send_raw` summarises each output with the
@@ -17,8 +20,7 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 from emulator.device import (
     GARBLED,
@@ -33,7 +35,7 @@ from emulator.device import (
     LineSettings,
     ModemLines,
 )
-from emulator.devices.ms2000.activity import LOWER, UPPER, Activity
+from emulator.devices.ms2000.activity import LOWER, UPPER, Activity, MoveGroup
 from emulator.devices.ms2000.axis import Axis
 from emulator.devices.ms2000.buttons import TTL_ENABLE_BIT, Buttons
 from emulator.devices.ms2000.calls import Rendered, Reply
@@ -41,12 +43,14 @@ from emulator.devices.ms2000.commands import BaseCommands
 from emulator.devices.ms2000.interpreter import Interpreter
 from emulator.devices.ms2000.lowlevel import LowLevel
 from emulator.devices.ms2000.modules import Handler, channels_of
+from emulator.devices.ms2000.modules.capabilities import FocusAxisSelect, ReportAxes
+from emulator.devices.ms2000.modules.events import Event, Halt, In0Edge, MoveComplete, Zeroing
 from emulator.devices.ms2000.modules.moduleset import ModuleSet
 from emulator.devices.ms2000.movelog import path_record
 from emulator.devices.ms2000.power import Power
 from emulator.devices.ms2000.scheduler import Scheduler, Timer
 from emulator.devices.ms2000.schema import Ms2000Config, baud_of
-from emulator.devices.ms2000.serial_line import SerialLine
+from emulator.devices.ms2000.serial_line import SerialLine, garble
 from emulator.devices.ms2000.settings import CardAuto
 from emulator.devices.ms2000.surface import ControlSurface
 from emulator.devices.ms2000.ttl import BASE_OUT_MODES, Ttl
@@ -55,29 +59,12 @@ from protocols import ms2000 as proto
 from protocols.ms2000 import Shape
 from protocols.rounding import round_half_away
 
+T = TypeVar("T")
+
 ERROR_LOG_SIZE = 64
 TRAJECTORY_SIZE = 500
 #: joystick dead band (MS-83)
 DEAD_BAND = 0.02
-
-
-@dataclass(eq=False)
-class MoveGroup:
-    """Axes started by one command: it completes when the last of them has landed and waited."""
-
-    activity: Activity = Activity.MOVE
-    axes: set[Axis] = field(default_factory=set)
-    #: letters of the axes that completed as part of the group, in landing order
-    landed: list[str] = field(default_factory=list)
-
-
-def garble(data: bytes) -> bytes:
-    """MS-4: each byte XOR 0x55, never CR nor 0xFF."""
-    out = bytearray()
-    for b in data:
-        g = b ^ 0x55
-        out.append({0x0D: 0x0E, 0xFF: 0xFE}.get(g, g))
-    return bytes(out)
 
 
 class Ms2000Device(Device):
@@ -104,12 +91,6 @@ class Ms2000Device(Device):
         self.card_auto = CardAuto()
         self.modules = ModuleSet(self, self.cfg.modules)
         self._catch_up = self.modules.catch_up_hooks()
-        # ModuleHost members that one module offers the others through the module set
-        self.report_fields = self.modules.report_fields
-        self.rm_x_values = self.modules.rm_x_values
-        self.rm_x = self.modules.rm_x
-        self.playback_mode = self.modules.playback_mode
-        self.array_arrival = self.modules.array_arrival
         self.ttl = Ttl(self)
         self.buttons = Buttons(self)
         self.low = LowLevel(self)
@@ -155,6 +136,17 @@ class Ms2000Device(Device):
 
     def push_event(self, event: dict[str, Any]) -> None:
         self._events.append(event)
+
+    # ---- ModuleHost: the modules among themselves (events.py, capabilities.py) -------------------
+
+    def emit(self, event: Event) -> None:
+        self.modules.emit(event)
+
+    def module(self, kind: type[T]) -> T | None:
+        return self.modules.get(kind)
+
+    def modules_of(self, kind: type[T]) -> tuple[T, ...]:
+        return self.modules.all_of(kind)
 
     # ---- the line (MS-1…MS-12, MS-119) --------------------------------------------------------
 
@@ -305,7 +297,8 @@ class Ms2000Device(Device):
 
     def focus_axis(self) -> Axis | None:
         """The axis ZS, the TTL Z-stack step (MS-94) and CRISP move: CRISP's `UL F` index, else Z."""
-        index = self.modules.focus_index()
+        selector = self.modules.get(FocusAxisSelect)
+        index = selector.focus_index() if selector is not None else None
         return self.axes[index] if index is not None and index < len(self.axes) else self.axis_named("Z")
 
     def relative_goal(self, axis: Axis, delta_mm: float, t: float) -> float:
@@ -319,7 +312,7 @@ class Ms2000Device(Device):
         self, goals: list[tuple[Axis, float]], t: float, activity: Activity = Activity.MOVE
     ) -> None:
         """Start a commanded move of several axes together (MS-51, MS-52, MS-64)."""
-        group = MoveGroup(activity)
+        group = MoveGroup[Axis](activity)
         for axis, goal in goals:
             if not axis.enabled:
                 continue
@@ -357,7 +350,7 @@ class Ms2000Device(Device):
         if not group.axes:
             self._move_complete(group, t)
 
-    def _move_complete(self, group: MoveGroup, t: float) -> None:
+    def _move_complete(self, group: MoveGroup[Axis], t: float) -> None:
         self.push_event(
             {
                 "ev": "move_complete",
@@ -371,7 +364,7 @@ class Ms2000Device(Device):
             self.unsolicited(":A " + " ".join(self.where(a.units(t)) for a in self.axes), t)
         if group.activity is Activity.MOVE:
             self.ttl.pulse(t)
-        self.modules.move_complete(group.landed, t)
+        self.modules.emit(MoveComplete(t, tuple(group.landed)))
 
     def halt_all(self, t: float) -> bool:
         """Stop every motion and module activity (MS-76); True if a commanded move was running."""
@@ -379,12 +372,12 @@ class Ms2000Device(Device):
         for axis in self.axes:
             self.leave_group(axis)
             axis.stop(t)
-        self.modules.halt(t)
+        self.modules.emit(Halt(t))
         return busy
 
     def zero_all(self, t: float) -> None:
         """ZERO (MS-70): every axis reads 0, nothing moves."""
-        self.modules.zeroing(t)
+        self.modules.emit(Zeroing(t))
         for axis in self.axes:
             axis.sample(t)
             axis.origin += axis.user_mm(t)
@@ -477,7 +470,7 @@ class Ms2000Device(Device):
         """A rising edge on IN0 (MS-90, MS-SEQ-2); BE bit 4 disables the TTL inputs (MS-86)."""
         if self.card.button_enable & TTL_ENABLE_BIT:
             self.in0_function(self.card.ttl_in, t)
-            self.modules.in0_edge(t)
+            self.modules.emit(In0Edge(t))
 
     def in0_function(self, mode: int, t: float) -> None:
         self.modules.in0_trigger(mode, t)
@@ -493,5 +486,8 @@ class Ms2000Device(Device):
 
     def report_axes(self) -> list[Axis]:
         """Axes reported by IN0 mode 5: a module's selection (RING BUFFER's `RM Y`, MS-RB-4) or all."""
-        mask = self.modules.report_mask()
-        return list(self.axes) if mask is None else [a for a in self.axes if mask & (1 << a.index)]
+        selector = self.modules.get(ReportAxes)
+        if selector is None:
+            return list(self.axes)
+        mask = selector.report_mask()
+        return [a for a in self.axes if mask & (1 << a.index)]

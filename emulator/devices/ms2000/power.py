@@ -8,13 +8,17 @@ end of the model call that caused it: a command that moves nothing costs nothing
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+import logging
+from collections import deque
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, Protocol
 
-from emulator.device import ControlError
+from emulator.device import ControlError, HostServices
 from emulator.devices.ms2000.activity import LOWER, UPPER
 from emulator.devices.ms2000.calls import Pending, Reply
 from emulator.devices.ms2000.flash import Flash
-from emulator.devices.ms2000.schema import baud_of
+from emulator.devices.ms2000.modules.events import Reset
+from emulator.devices.ms2000.sections import baud_of
 from emulator.devices.ms2000.settings import (
     AxisAuto,
     AxisSettings,
@@ -28,8 +32,15 @@ from emulator.schema import finite_number
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.model import Ms2000Device
+    from emulator.devices.ms2000.axis import Axis
+    from emulator.devices.ms2000.buttons import Buttons
+    from emulator.devices.ms2000.interpreter import Interpreter
+    from emulator.devices.ms2000.lowlevel import LowLevel
+    from emulator.devices.ms2000.modules.moduleset import ModuleSet
     from emulator.devices.ms2000.scheduler import Timer
+    from emulator.devices.ms2000.schema import Ms2000Config
+    from emulator.devices.ms2000.sections import Ms2000Knobs
+    from emulator.devices.ms2000.ttl import Ttl
 
 CLOCK_MARK_S = 600.0
 #: positions are saved once the stage has rested this long (device seconds): a host moving in
@@ -41,10 +52,79 @@ IDENTITY_MISMATCH_CODE = 55
 REPR_LIMIT = 40
 
 
+class PowerHost(Protocol):
+    """All power, reset and flash use of their controller: the parts they bring back to idle, and the
+    controller state they restore or clear (the attributes)."""
+
+    baud: int
+    card: CardSettings
+    card_auto: CardAuto
+    ensync_level: int
+    user_counter: int
+    lcd_text: str | None
+    last_relative: list[tuple[str, float | None]]
+    booted_at: float
+    storage_error: str | None
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def now(self) -> float: ...
+
+    @property
+    def log(self) -> logging.Logger: ...
+
+    @property
+    def services(self) -> HostServices:
+        """The flash store."""
+
+    @property
+    def cfg(self) -> Ms2000Config: ...
+
+    @property
+    def knobs(self) -> Ms2000Knobs: ...
+
+    @property
+    def dip(self) -> dict[str, str]: ...
+
+    @property
+    def axes(self) -> Sequence[Axis]: ...
+
+    @property
+    def modules(self) -> ModuleSet: ...
+
+    @property
+    def interpreter(self) -> Interpreter: ...
+
+    @property
+    def ttl(self) -> Ttl: ...
+
+    @property
+    def low(self) -> LowLevel: ...
+
+    @property
+    def buttons(self) -> Buttons: ...
+
+    @property
+    def error_log(self) -> deque[int]: ...
+
+    @property
+    def trajectory_log(self) -> deque[str]: ...
+
+    def at(self, due: float, action: Callable[[float], None]) -> Timer: ...
+
+    def ack(self) -> Reply: ...
+
+    def log_error(self, code: int) -> None: ...
+
+    def push_event(self, event: dict[str, Any]) -> None: ...
+
+
 class Power:
     """The controller's power states and its flash; works on the controller's axes and settings."""
 
-    def __init__(self, ctl: Ms2000Device) -> None:
+    def __init__(self, ctl: PowerHost) -> None:
         self.ctl = ctl
         cfg = ctl.cfg
         identity = {"build": cfg.build_name, "version": cfg.version, "axes": list(cfg.motor_axes)}
@@ -198,7 +278,7 @@ class Power:
         if self._clock_timer is not None:
             self._clock_timer.cancel()
         self._clock_timer = ctl.at(t + CLOCK_MARK_S, self._clock_mark)
-        ctl.modules.reset(t)
+        ctl.modules.emit(Reset(t))
         ctl.ttl.reset(t)
         # what the flash holds counts as saved: a reset alone writes nothing (MS-112)
         self._saved_positions = self._position_key()

@@ -10,19 +10,45 @@ the derived values are computed once per change, not per call.
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 from emulator.device import HostLine, LineSettings
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.model import Ms2000Device
+    from emulator.devices.ms2000.sections import Ms2000Knobs
+    from emulator.devices.ms2000.settings import CardSettings
 
 #: settings that garble the traffic when they differ (stop bits and flow control do not)
 _GARBLING = ("baud", "data_bits", "parity")
 
 
+def garble(data: bytes) -> bytes:
+    """MS-4: each byte XOR 0x55, never CR nor 0xFF."""
+    out = bytearray()
+    for b in data:
+        g = b ^ 0x55
+        out.append({0x0D: 0x0E, 0xFF: 0xFE}.get(g, g))
+    return bytes(out)
+
+
+class LineOwner(Protocol):
+    """All the serial line reads of its controller."""
+
+    @property
+    def baud(self) -> int:
+        """The DIP switches' baud (MS-2)."""
+
+    @property
+    def card(self) -> CardSettings:
+        """`STOPBITS` (MS-3)."""
+
+    @property
+    def knobs(self) -> Ms2000Knobs:
+        """`line_mismatch` (MS-4)."""
+
+
 class SerialLine:
-    def __init__(self, ctl: Ms2000Device) -> None:
+    def __init__(self, ctl: LineOwner) -> None:
         self.ctl = ctl
         self._seen: HostLine | None = None
         self._declared: dict[str, Any] = {}

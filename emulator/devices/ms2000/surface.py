@@ -3,10 +3,10 @@ theirs through the controller's ModuleSet."""
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable, Sequence
+from typing import TYPE_CHECKING, Any, Protocol
 
-from emulator.device import ControlError
+from emulator.device import ControlError, HostLine
 from emulator.devices.ms2000.activity import LOWER, UPPER, Activity
 from emulator.devices.ms2000.axis import Axis
 from emulator.devices.ms2000.buttons import NAMES as BUTTON_NAMES
@@ -14,16 +14,101 @@ from emulator.devices.ms2000.status import status_byte
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.model import Ms2000Device
+    from emulator.devices.ms2000.buttons import Buttons
+    from emulator.devices.ms2000.interpreter import Interpreter
+    from emulator.devices.ms2000.modules.moduleset import ModuleSet
+    from emulator.devices.ms2000.power import Power
+    from emulator.devices.ms2000.schema import Ms2000Config
+    from emulator.devices.ms2000.sections import Ms2000Knobs
+    from emulator.devices.ms2000.ttl import Ttl
 
 #: LCD lines are 20 characters (MS-116)
 LCD_WIDTH = 20
 
 
+class Surfaced(Protocol):
+    """All the control channel reads and drives of its controller."""
+
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def cfg(self) -> Ms2000Config: ...
+
+    @property
+    def knobs(self) -> Ms2000Knobs: ...
+
+    @property
+    def axes(self) -> Sequence[Axis]: ...
+
+    @property
+    def modules(self) -> ModuleSet:
+        """Their observables, inputs and LCD segments."""
+
+    @property
+    def ttl(self) -> Ttl: ...
+
+    @property
+    def buttons(self) -> Buttons: ...
+
+    @property
+    def interpreter(self) -> Interpreter: ...
+
+    @property
+    def power(self) -> Power:
+        """`power_cycle`."""
+
+    @property
+    def dip(self) -> dict[str, str]:
+        """Set by the `dip` input, read at the next power-up (MS-2)."""
+
+    @property
+    def az_fail(self) -> set[str]:
+        """Axes whose `AZ` fails (the `az_fail` input)."""
+
+    @property
+    def error_log(self) -> Sequence[int]: ...
+
+    @property
+    def baud(self) -> int: ...
+
+    @property
+    def booted_at(self) -> float: ...
+
+    @property
+    def ensync_level(self) -> int: ...
+
+    @property
+    def lcd_text(self) -> str | None: ...
+
+    @property
+    def lcd_inches(self) -> bool: ...
+
+    def axis_named(self, letter: str) -> Axis | None: ...
+
+    def axis_finished(self, axis: Axis, t: float) -> None: ...
+
+    def busy(self, t: float) -> bool: ...
+
+    def where(self, units: float) -> str: ...
+
+    def log_error(self, code: int) -> None: ...
+
+    def set_joystick(self, x: float, y: float, t: float) -> None: ...
+
+    def turn_wheel(self, counts: float, t: float) -> None: ...
+
+    def garbles(self) -> bool: ...
+
+    def host_line(self) -> HostLine | None: ...
+
+    def declare_host(self, settings: dict[str, Any]) -> None: ...
+
+
 class ControlSurface:
     """The `in`/`get` vocabulary of the controller's control channel."""
 
-    def __init__(self, ctl: Ms2000Device) -> None:
+    def __init__(self, ctl: Surfaced) -> None:
         self.ctl = ctl
 
     def lcd(self, t: float) -> list[str]:

@@ -8,21 +8,44 @@ an `ttl_out0` event.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Protocol
 
 from emulator.devices.ms2000.buttons import TTL_ENABLE_BIT
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.model import Ms2000Device
+    from emulator.devices.ms2000.modules.moduleset import ModuleSet
     from emulator.devices.ms2000.scheduler import Timer
+    from emulator.devices.ms2000.settings import CardSettings
 
 #: OUT0 modes of the base controller (MS-91); 8 is PREPULSE's timed pulse, emulated as mode 2
 BASE_OUT_MODES = frozenset({0, 1, 2})
 PULSE_MODES = frozenset({2, 8})
 
 
+class TtlHost(Protocol):
+    """All the TTL lines use of their controller."""
+
+    @property
+    def card(self) -> CardSettings:
+        """`TTL`, `RT Y`, `BE` and `VB` (MS-90, MS-91, MS-86, MS-96)."""
+
+    @property
+    def modules(self) -> ModuleSet:
+        """What drives OUT0 in a module's mode; IN0's falling edge in a level mode."""
+
+    def at(self, due: float, action: Callable[[float], None]) -> Timer: ...
+
+    def unsolicited(self, text: str, t: float) -> None: ...
+
+    def push_event(self, event: dict[str, Any]) -> None: ...
+
+    def in0_edge(self, t: float) -> None:
+        """A rising edge on IN0: the mode's function, then the modules' `In0Edge`."""
+
+
 class Ttl:
-    def __init__(self, ctl: Ms2000Device) -> None:
+    def __init__(self, ctl: TtlHost) -> None:
         self.ctl = ctl
         self.in0 = 0
         self.in1 = 0

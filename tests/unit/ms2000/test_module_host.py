@@ -1,6 +1,7 @@
 """The module host (rule 6 of the design): a firmware module is one file that registers everything it
-adds, sees the controller only as a `ModuleHost`, and is enabled by a profile. Proved with a
-test-only module defined in this file: no other file of the controller or its modules changes."""
+adds, sees the controller only as a `ModuleHost`, and is enabled by a profile. Proved with
+test-only modules defined in this file: no other file of the controller or its modules changes,
+not even to let one of them talk to an existing module (ARRAY) through events."""
 
 from __future__ import annotations
 
@@ -13,6 +14,8 @@ import pytest
 from emulator import registry
 from emulator.devices.ms2000.calls import Call, Param, Reply, run_settings, within
 from emulator.devices.ms2000.modules import MODULES, Handler, Module
+from emulator.devices.ms2000.modules.capabilities import ControlChannel, LcdSegment, Playback
+from emulator.devices.ms2000.modules.events import ArrayArrival, Reset, RmX, on
 from emulator.devices.ms2000.modules.host import ModuleHost
 from emulator.devices.ms2000.schema import DEFAULT_MODULES, build_schema
 from emulator.profile import ProfileError, load_profile
@@ -22,11 +25,13 @@ from tests.unit.ms2000.conftest import Harness
 
 ACK = b":A\r\n"
 PROBE = "TEST PROBE"
+WATCHER = "TEST ARRAY WATCHER"
 
 
-class ProbeModule(Module):
+class ProbeModule(Module, ControlChannel, LcdSegment):
     """A test-only module: a command, a reply shape, a knob, an observable, an input, a `BU X` line,
-    an LCD segment and an `SS Z` setting, all declared here."""
+    an LCD segment and an `SS Z` setting, all declared here (the capabilities it derives from say
+    which of these the controller asks it for)."""
 
     name = PROBE
     # WRDAC belongs to DAC OUT in the command table; no emulated module implements it yet
@@ -71,14 +76,42 @@ class ProbeModule(Module):
         volts = (data or {}).get("volts", 0.0)
         self.volts = float(volts) if isinstance(volts, int | float) else 0.0
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
         self.kicks = 0
+
+
+class ArrayWatcher(Module, ControlChannel):
+    """A test-only module that talks to ARRAY through events alone: its input `watch_start` sends the
+    `RmX` event RING BUFFER sends for `RM X=1`, which starts ARRAY's commanded stepping
+    (MS-ARRAY-6), and it hears each cell ARRAY reaches (`ArrayArrival`, MS-ARRAY-8). It reads RING
+    BUFFER's playback mode by capability (`Playback`), not by asking every module."""
+
+    name = WATCHER
+    observable = "watcher"
+    inputs = frozenset({"watch_start"})
+
+    def __init__(self, host: ModuleHost) -> None:
+        super().__init__(host)
+        self.arrivals: list[float] = []
+
+    def control_input(self, name: str, params: dict[str, Any], now: float) -> Any:
+        self.host.emit(RmX(now, 1))
+
+    @on(ArrayArrival)
+    def arrived(self, event: ArrayArrival) -> None:
+        self.arrivals.append(event.t)
+
+    def observe(self, now: float) -> Any:
+        ring = self.host.module(Playback)
+        return {"arrivals": list(self.arrivals), "playback": ring.playback_mode() if ring else None}
 
 
 @pytest.fixture
 def probe_registered(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
-    """Register the module and its schema fields, as importing its file from modules/ would."""
+    """Register the modules and their schema fields, as importing their files from modules/ would."""
     monkeypatch.setitem(MODULES, PROBE, ProbeModule)
+    monkeypatch.setitem(MODULES, WATCHER, ArrayWatcher)
     family = registry.family("ms2000")
     assert family is not None
     registry.register(dataclasses.replace(family, schema=build_schema()))
@@ -137,3 +170,40 @@ def test_module_knob_is_a_validated_profile_key(probe_registered: None) -> None:
     with pytest.raises(ProfileError, match="probe_gain"):
         load_profile("ms2000", {"modules": [PROBE], "knobs": {"probe_gain": 11}})
     assert load_profile("ms2000").config.knobs.probe_gain == 1
+
+
+def test_module_talks_to_an_existing_module_through_events_ms_array_6_ms_array_8(
+    probe_registered: None,
+) -> None:
+    """The watcher starts ARRAY's stepping with an event and hears the arrival ARRAY reports: the
+    same instant as ARRAY's own control event, with nothing of either module changed."""
+    modules = [*load_profile("ms2000-seq").config.modules, WATCHER]
+    h = Harness("ms2000-seq", {"modules": modules})
+    assert h.cmd("AR X=2 Y=2 Z=1 F=1") == ACK
+    assert h.cmd("RM F=3") == ACK
+    h.input("watch_start")
+    h.idle()
+    reported = h.take_events("array_arrival")
+    assert [(e["i"], e["j"]) for e in reported] == [(1, 1)]
+    assert h.get("watcher") == {"arrivals": [reported[0]["t"]], "playback": 3}
+    assert h.get("array")["running"] == "stepping"
+
+
+def test_event_subscriptions_are_found_once_per_class() -> None:
+    """A module's `@on` methods, inherited ones included, make its subscription table."""
+    assert ProbeModule.subscriptions == {Reset: "reset"}
+    assert ArrayWatcher.subscriptions == {ArrayArrival: "arrived"}
+
+
+def test_two_handlers_of_one_event_in_a_class_are_refused() -> None:
+    """One method per event class and module: a second is a mistake caught as the class is made."""
+    with pytest.raises(TypeError, match="two handlers of Reset"):
+
+        class Twice(Module):
+            name = "TWICE"
+
+            @on(Reset)
+            def first(self, event: Reset) -> None: ...
+
+            @on(Reset)
+            def second(self, event: Reset) -> None: ...

@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 
 from emulator.devices.ms2000.modules import MODULES, Module
+from emulator.devices.ms2000.modules.events import MoveComplete, on
 from emulator.devices.ms2000.schema import SCHEMA
 from emulator.profile import ProfileError
 from emulator.schema import Section
@@ -156,8 +157,9 @@ def test_move_complete_hook_gets_every_landed_axis(
     class Probe(Module):
         name = "PROBE"
 
-        def move_complete(self, axes: list[str], now: float) -> None:
-            seen.append(list(axes))
+        @on(MoveComplete)
+        def move_complete(self, event: MoveComplete) -> None:
+            seen.append(list(event.axes))
 
     monkeypatch.setitem(MODULES, Probe.name, Probe)
     ms = make(overrides={"modules": ["LL COMMANDS", "RING BUFFER", "INO_INT", "LED DIMMER", Probe.name]})

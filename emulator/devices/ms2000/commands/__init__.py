@@ -4,8 +4,7 @@ from __future__ import annotations
 
 from functools import partial
 
-from emulator.devices.ms2000.calls import Reply
-from emulator.devices.ms2000.commands.base import Handler
+from emulator.devices.ms2000.calls import Handler, Reply
 from emulator.devices.ms2000.commands.motion import MotionCommands
 from emulator.devices.ms2000.commands.settings import SettingsCommands
 from emulator.devices.ms2000.commands.system import SystemCommands

@@ -12,6 +12,7 @@ from emulator.devices.ms2000.calls import (
     number,
 )
 from emulator.devices.ms2000.commands.base import CommandSet
+from emulator.devices.ms2000.modules.capabilities import FocusScore
 from emulator.devices.ms2000.status import right_char, status_byte
 from protocols.ms2000 import ErrorCode, Kind
 from protocols.rounding import round_half_away
@@ -147,10 +148,12 @@ class MotionCommands(CommandSet):
         if not items:
             raise CommandError(ErrorCode.MISSING_PARAMETERS)
         jx, jy = self.ctl.joystick
+        scorer = self.ctl.modules.get(FocusScore)
+        score = scorer.focus_score(call.now) if scorer is not None else None
         readings = {
             "X": 128 + round_half_away(127 * jx),
             "Y": 128 + round_half_away(127 * jy),
-            "Z": self.ctl.modules.focus_score(call.now),
+            "Z": score if score is not None else 0,  # MS-117: 0 without AUTOFOCUS
             "F": 0,
         }
         codes = [

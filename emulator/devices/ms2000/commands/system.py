@@ -23,6 +23,7 @@ from emulator.devices.ms2000.calls import (
     within,
 )
 from emulator.devices.ms2000.commands.base import CommandSet
+from emulator.devices.ms2000.modules.events import In0ModeChanged, Out0ModeChanged, TtlTrailingValue
 from protocols.ms2000 import ErrorCode, Item, Kind, f6
 
 AZ_SECONDS = 0.5
@@ -67,14 +68,14 @@ class SystemCommands(CommandSet):
         reply = self._settings(call, params, PSEUDO_ORDER)
         t = call.now
         if "ttl_in" in changed:
-            ctl.modules.in0_mode_changed(card.ttl_in, t)
+            ctl.modules.emit(In0ModeChanged(t, card.ttl_in))
         if "ttl_out" in changed:
-            ctl.modules.out0_mode_changed(card.ttl_out, t)
+            ctl.modules.emit(Out0ModeChanged(t, card.ttl_out))
         if changed & {"ttl_out", "ttl_polarity"}:
             ctl.ttl.apply_mode(t)
         trailing = _number_after(call.items, "Y")
         if "ttl_out" in changed and trailing is not None:
-            ctl.modules.ttl_trailing_value(card.ttl_out, trailing, t)
+            ctl.modules.emit(TtlTrailingValue(t, card.ttl_out, trailing))
             ctl.ttl.refresh(t)
         return reply
 

@@ -25,6 +25,15 @@ from emulator.devices.ms2000.calls import (
     within,
 )
 from emulator.devices.ms2000.modules import Handler, Module, register
+from emulator.devices.ms2000.modules.capabilities import (
+    ControlChannel,
+    LcdSegment,
+    PanelButtons,
+    Playback,
+    RmXServer,
+    TtlIn,
+)
+from emulator.devices.ms2000.modules.events import ArrayArrival, Halt, MoveComplete, Reset, RmX, on
 from emulator.devices.ms2000.modules.scan_roles import FAST, SCAN_MODULE, SERPENTINE, SLOW, shared_roles
 from emulator.schema import Bool, Field
 from protocols.ms2000 import Fmt, Kind
@@ -75,7 +84,7 @@ class CellOrder:
 
 
 @register
-class ArrayModule(Module):
+class ArrayModule(Module, RmXServer, TtlIn, PanelButtons, LcdSegment, ControlChannel):
     name = "ARRAY MODULE"
     knob_fields = (
         Field(
@@ -149,11 +158,13 @@ class ArrayModule(Module):
                         own[key] = value
         self.roles.restore(data, self.host)
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
         self._stop(IDLE)
         self.cell = (1, 1)
 
-    def halt(self, now: float) -> None:
+    @on(Halt)
+    def halt(self, event: Halt) -> None:
         """HALT stops a self-scan or stepping (MS-ARRAY-5)."""
         self._stop(IDLE)
 
@@ -261,11 +272,12 @@ class ArrayModule(Module):
         else:
             self._begin(SELF_SCAN, now)
 
-    def rm_x(self, value: int, now: float) -> None:
+    @on(RmX)
+    def rm_x(self, event: RmX) -> None:
         """`RM X=1` starts commanded stepping; `RM X=0` too with the knob, in IN0 mode 7 (MS-ARRAY-6)."""
         knob = self.host.knobs.array_start_on_rm_x0 and self.host.card.ttl_in == STEP_MODE
-        if value == START_STEPPING or (value == 0 and knob):
-            self._begin(STEPPING, now)
+        if event.value == START_STEPPING or (event.value == 0 and knob):
+            self._begin(STEPPING, event.t)
 
     def in0_trigger(self, mode: int, now: float) -> None:
         """Next cell while stepping; ignored while a move runs or once the last cell is reached."""
@@ -311,9 +323,12 @@ class ArrayModule(Module):
         self.state = MOVING
         self.host.start_moves(self.goals, now)
 
-    def move_complete(self, axes: list[str], now: float) -> None:
+    @on(MoveComplete)
+    def move_complete(self, event: MoveComplete) -> None:
         """An arrival: `array_arrival`, then what the run does next; a cell not reached (limit,
         stall) is state E and ends the run (MS-ARRAY-7, MS-ARRAY-8)."""
+        axes = event.axes
+        now = event.t
         letters = {axis.letter for axis, _ in self.goals}
         if not letters & set(axes):
             return
@@ -324,16 +339,21 @@ class ArrayModule(Module):
             return
         i, j = self.cell
         self.host.push_event({"ev": "array_arrival", "i": i, "j": j, "t": now})
-        self.host.array_arrival(now)  # SEQUENCER's condition 13 (MS-ARRAY-8)
+        self.host.emit(ArrayArrival(now))  # SEQUENCER's condition 13 (MS-ARRAY-8)
         self.state = ARRIVED
         last = self.step + 1 >= self.order.count
         if self.running == SELF_SCAN:
-            repeat = self.host.playback_mode() == REPEATING
+            repeat = self._playback() == REPEATING
             self.state = COMPLETE if last and not repeat else DELAY
             self._after_delay(now, self._next_self_scan_cell)
         elif self.running == STEPPING and last:
             self.state = COMPLETE
             self._after_delay(now, self._complete)
+
+    def _playback(self) -> int | None:
+        """RING BUFFER's playback mode, which self-scanning follows (MS-ARRAY-5)."""
+        ring = self.host.module(Playback)
+        return ring.playback_mode() if ring is not None else None
 
     def _after_delay(self, now: float, action: Callable[[float], None]) -> None:
         self._timer = self.host.at(now + self.host.card.rt_delay_ms / 1000, action)
@@ -341,7 +361,7 @@ class ArrayModule(Module):
     def _next_self_scan_cell(self, now: float) -> None:
         self._timer = None
         if self.step + 1 >= self.order.count:
-            if self.host.playback_mode() != REPEATING:
+            if self._playback() != REPEATING:
                 self._complete(now)
                 return
             self.order = self._cells()

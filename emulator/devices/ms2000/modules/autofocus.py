@@ -34,6 +34,22 @@ from emulator.devices.ms2000.modules.autofocus_curve import (
     zero_for,
 )
 from emulator.devices.ms2000.modules.autofocus_settings import HILL_MODE, AfSettings
+from emulator.devices.ms2000.modules.capabilities import (
+    ControlChannel,
+    FocusScore,
+    LcdSegment,
+    PanelButtons,
+    TtlIn,
+    TtlOut,
+)
+from emulator.devices.ms2000.modules.events import (
+    Halt,
+    In0ModeChanged,
+    MoveComplete,
+    Out0ModeChanged,
+    Reset,
+    on,
+)
 from emulator.schema import Bool, Field
 from emulator.trafficlog import AF_SAMPLE
 from protocols.ms2000 import ErrorCode, Kind, Shape, error_reply
@@ -80,7 +96,7 @@ class Run:
 
 
 @register
-class Autofocus(Module):
+class Autofocus(Module, FocusScore, TtlIn, TtlOut, PanelButtons, LcdSegment, ControlChannel):
     name = AUTOFOCUS
     knob_fields = (
         Field("af_reply_value", Bool(), False, "MS-AF-3", "a successful `AF` replies `:A <peak value>`"),
@@ -157,16 +173,20 @@ class Autofocus(Module):
     def restore(self, data: dict[str, Any] | None) -> None:
         self.settings.restore(data)
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
         """Reset and power-up (MS-112): no run, OUT0 low, IN0 mode 103 re-armed if restored."""
+        now = event.t
         self._cancel_sampler()
         self._push_end(now, HALTED)  # a reset stops a run as HALT does
         self.run = None  # AFADJ is what restore() brought back
         self.focused = False
         self._arm_repeat(now, self.host.card.ttl_in == AF_REPEAT)
 
-    def halt(self, now: float) -> None:
+    @on(Halt)
+    def halt(self, event: Halt) -> None:
         """HALT (MS-76) ends a run; a run waiting to reply answers `:N-21` (MS-33)."""
+        now = event.t
         if self.run is not None:
             self._end(now, Reply.text(error_reply(ErrorCode.HALTED)), result=HALTED)
 
@@ -227,8 +247,9 @@ class Autofocus(Module):
         if mode == AF_EDGE:
             self._start_silent(now)
 
-    def in0_mode_changed(self, mode: int, now: float) -> None:
-        self._arm_repeat(now, mode == AF_REPEAT)
+    @on(In0ModeChanged)
+    def in0_mode_changed(self, event: In0ModeChanged) -> None:
+        self._arm_repeat(event.t, event.mode == AF_REPEAT)
 
     def _arm_repeat(self, now: float, on: bool) -> None:
         """IN0 mode 103: a run `RT X` ms after the last one ended [choice: runs never overlap]."""
@@ -243,14 +264,18 @@ class Autofocus(Module):
         if self.run is None and self._start(now, False, serial=False) is not None:
             self._arm_repeat(now, True)  # refused: try again next period
 
-    def out0_mode_changed(self, mode: int, now: float) -> None:
-        if mode == FOCUSED_OUT:
+    @on(Out0ModeChanged)
+    def out0_mode_changed(self, event: Out0ModeChanged) -> None:
+        if event.mode == FOCUSED_OUT:
             self.focused = False  # [choice] low until the next run succeeds
 
     def out0_level(self) -> int | None:
         return int(self.focused)
 
-    def move_complete(self, axes: list[str], now: float) -> None:
+    @on(MoveComplete)
+    def move_complete(self, event: MoveComplete) -> None:
+        axes = event.axes
+        now = event.t
         axis = self.host.focus_axis()
         run = self.run
         if run is not None and axis is not None and axis.letter in axes:

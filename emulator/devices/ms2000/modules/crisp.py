@@ -33,6 +33,16 @@ from typing import TYPE_CHECKING, Any, ClassVar
 from emulator.devices.ms2000.buttons import NORMAL
 from emulator.devices.ms2000.modules import Handler, Module, register
 from emulator.devices.ms2000.modules import crisp_states as st
+from emulator.devices.ms2000.modules.capabilities import (
+    CatchUp,
+    ControlChannel,
+    FocusAxisSelect,
+    FocusWheel,
+    LcdSegment,
+    PanelButtons,
+    TtlIn,
+    TtlOut,
+)
 from emulator.devices.ms2000.modules.crisp_commands import CrispCommands
 from emulator.devices.ms2000.modules.crisp_optics import Optics
 from emulator.devices.ms2000.modules.crisp_routines import Routines
@@ -40,6 +50,7 @@ from emulator.devices.ms2000.modules.crisp_settings import (
     OFFSET_LIMIT,
     CrispSettings,
 )
+from emulator.devices.ms2000.modules.events import Halt, MoveComplete, Out0ModeChanged, Reset, on
 from emulator.schema import Choice, Field, Float
 from emulator.trafficlog import CRISP_SAMPLE
 from protocols.ms2000 import Shape
@@ -59,7 +70,9 @@ FOCUS_EVENT = "crisp"
 
 
 @register
-class Crisp(Module):
+class Crisp(
+    Module, FocusAxisSelect, FocusWheel, CatchUp, TtlIn, TtlOut, PanelButtons, LcdSegment, ControlChannel
+):
     name = "CRISP"
     knob_fields = (
         Field("crisp_directive_name", Choice(("CRISP", "CRIFF")), "CRISP", "MS-102", "CRISP's `BU X` line"),
@@ -303,16 +316,19 @@ class Crisp(Module):
         if self.state in st.ENGAGED:
             self.enter(st.READY, now)
 
-    def out0_mode_changed(self, mode: int, now: float) -> None:
+    @on(Out0ModeChanged)
+    def out0_mode_changed(self, event: Out0ModeChanged) -> None:
         self._pulse_waiting = False
-        self._end_pulse(now)
+        self._end_pulse(event.t)
 
     def out0_level(self) -> int | None:
         if self.host.card.ttl_out == IN_FOCUS_MODE:
             return int(self.state == st.IN_FOCUS)
         return int(self._pulse is not None)
 
-    def move_complete(self, axes: list[str], now: float) -> None:
+    @on(MoveComplete)
+    def move_complete(self, event: MoveComplete) -> None:
+        now = event.t
         self.sync(now)
         if self.host.card.ttl_out != PULSE_MODE or self.state not in st.ENGAGED:
             return
@@ -393,13 +409,17 @@ class Crisp(Module):
     def restore(self, data: dict[str, Any] | None) -> None:
         self.settings = CrispSettings.restored(data, len(self.host.axes))
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
+        now = event.t
         self.routines.stop(now, quiet=True)
         self.active_index = self.settings.focus_index
         self._pulse_waiting = False
         self._end_pulse(now)
         self.enter(st.IDLE, now)
 
-    def halt(self, now: float) -> None:
+    @on(Halt)
+    def halt(self, event: Halt) -> None:
+        now = event.t
         if self.state in st.ROUTINES:
             self.resume(self.routines.stop(now), now)

@@ -12,6 +12,8 @@ from typing import TYPE_CHECKING, Any
 
 from emulator.devices.ms2000.calls import Call, CommandError, Param, Reply, run_settings, within
 from emulator.devices.ms2000.modules import Handler, Module, register
+from emulator.devices.ms2000.modules.capabilities import ControlChannel, LcdSegment
+from emulator.devices.ms2000.modules.events import Reset, on
 from protocols.ms2000 import ErrorCode, Fmt
 from protocols.rounding import round_half_away
 
@@ -35,7 +37,7 @@ def volts_of(code: int) -> float:
 
 
 @register
-class DacOut(Module):
+class DacOut(Module, LcdSegment, ControlChannel):
     name = "DAC OUT"
     observable = "dac_out_v"
 
@@ -60,7 +62,8 @@ class DacOut(Module):
     def _set(self, volts: float) -> None:
         self.volts = volts
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
         self.volts = 0.0  # not saved: 0 V at power-up and reset [choice, MS-DAC-1]
 
     def _piezo_volts(self, axis: Axis, now: float) -> float:

@@ -20,6 +20,8 @@ from typing import TYPE_CHECKING, Any
 
 from emulator.devices.ms2000.calls import Call, Param, Reply, run_settings, within
 from emulator.devices.ms2000.modules import Handler, Module, register
+from emulator.devices.ms2000.modules.capabilities import AutoSettings, ControlChannel, LcdSegment, TtlIn
+from emulator.devices.ms2000.modules.events import In0ModeChanged, Reset, on
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.modules.host import ModuleHost
@@ -41,7 +43,7 @@ FACTORY_MAXIMA = {"X": 100, "Y": 100}
 
 
 @register
-class Dled(Module):
+class Dled(Module, AutoSettings, TtlIn, LcdSegment, ControlChannel):
     name = "DLED"
     in0_modes = GATED_MODES
     observable = "led"
@@ -149,11 +151,12 @@ class Dled(Module):
         if mode not in TIMED_MODES:
             self._light(set(), now)
 
-    def in0_mode_changed(self, mode: int, now: float) -> None:
+    @on(In0ModeChanged)
+    def in0_mode_changed(self, event: In0ModeChanged) -> None:
         """A new IN0 mode starts dark and from channel X (MS-LED-5)."""
         self._cancel()
         self.last = None
-        self._light(set(), now)
+        self._light(set(), event.t)
 
     # ---- reports, SS Z and the remembered maxima ----------------------------------------------
 
@@ -171,7 +174,9 @@ class Dled(Module):
             "maxima": {c.lower(): v for c, v in self.maxima.items()},
         }
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
+        now = event.t
         # brightness saved by `SS Z` before a maximum was lowered is limited to it
         self.levels = {c: self._limited(c) for c in CHANNELS}
         self._cancel()

@@ -9,13 +9,13 @@ BUFFER listed before it still steps on a mode-1 trigger such as a bare `RM`).
 from __future__ import annotations
 
 from emulator.devices.ms2000.modules import Module, register
+from emulator.devices.ms2000.modules.capabilities import In0Interrupt, TtlIn
 
 #: `TTL X=1` enables encoder-pulse counting
 COUNTING_MODE = 1
 
 
 @register
-class EncInt(Module):
+class EncInt(Module, TtlIn, In0Interrupt):
     name = "ENC_INT"
-    provides_in0_interrupt = True
     in0_modes = frozenset({COUNTING_MODE})

@@ -1,26 +1,27 @@
-"""The host interfaces: all a firmware module (`ModuleHost`, rule 6 of the design) and an axis
-(`AxisHost`) may use of the controller.
+"""The module host: all a firmware module may use of the controller (rule 6 of the design).
 
-A module is constructed with an object satisfying `ModuleHost` and nothing else, an axis with an
-`AxisHost`; mypy holds them to these members. `model.Ms2000Device` implements both. A module that
-needs more adds it here and to the controller, on purpose and in review, rather than reaching into
-controller state.
+A module is constructed with an object satisfying `ModuleHost` and nothing else; mypy holds it to
+these members. `model.Ms2000Device` implements it (as it implements `axis_host.AxisHost` for the
+axes). A module that needs more adds it here and to the controller, on purpose and in review,
+rather than reaching into controller state; what one module offers another travels as an event
+(events.py) or a capability (capabilities.py), not as a member here.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, Protocol, TypeVar
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.activity import Activity
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.calls import Rendered, Reply
-    from emulator.devices.ms2000.modules import Handler
+    from emulator.devices.ms2000.calls import Handler, Rendered, Reply
+    from emulator.devices.ms2000.modules.events import Event
     from emulator.devices.ms2000.scheduler import Timer
-    from emulator.devices.ms2000.schema import Ms2000Knobs
     from emulator.devices.ms2000.settings import CardSettings
     from protocols.ms2000 import Shape
+
+T = TypeVar("T")
 
 
 class ModuleHost(Protocol):
@@ -142,56 +143,15 @@ class ModuleHost(Protocol):
     def toggle_out0(self, t: float) -> None: ...
 
     def report_axes(self) -> list[Axis]:
-        """The axes IN0 mode 5 reports: a module's selection (`report_mask`) or all."""
+        """The axes IN0 mode 5 reports: a module's selection (`ReportAxes`) or all."""
 
-    def report_fields(self, t: float) -> list[str]:
-        """What the modules append to an IN0 mode 5 report (`report_fields`, MS-TRACK-3)."""
+    # ---- the other modules (events.py, capabilities.py) ----------------------------------------
 
-    # ---- RING BUFFER's RM and the modules that follow it (MS-RB-4, MS-ARRAY-5, MS-ARRAY-6) --------
+    def emit(self, event: Event) -> None:
+        """Offer `event` to the modules subscribed to its class, in profile order."""
 
-    def rm_x_values(self) -> set[int]:
-        """`RM X=` values a module serves besides 0 (clear)."""
+    def module(self, kind: type[T]) -> T | None:
+        """The module with capability `kind` (the one that owns the value), if the profile has one."""
 
-    def rm_x(self, value: int, t: float) -> None:
-        """Offer an accepted `RM X=value` to every module."""
-
-    def playback_mode(self) -> int | None:
-        """The ring buffer's `RM F` playback mode (None without RING BUFFER)."""
-
-    def array_arrival(self, t: float) -> None:
-        """ARRAY reached a cell: offered to every module (SEQUENCER's ARRAY_MOVE_DONE, MS-ARRAY-8)."""
-
-
-class AxisHost(Protocol):
-    """All an axis may use of its controller (`model.Ms2000Device` implements it)."""
-
-    @property
-    def knobs(self) -> Ms2000Knobs: ...
-
-    @property
-    def servo_s(self) -> float: ...
-
-    def at(self, due: float, action: Callable[[float], None]) -> Timer: ...
-
-    def log_error(self, code: int) -> None: ...
-
-    def record_sample(self, axis: Axis, t: float) -> None:
-        """A DUMP trajectory sample at a leg boundary (MS-108)."""
-
-    def path_changed(self, axis: Axis, t: float) -> None:
-        """The axis's planned path changed at `t` (a leg planned, a motion cut short): a `move`
-        record for the traffic log (movelog.py)."""
-
-    def positions_changed(self) -> None:
-        """The axis came to rest or its coordinates changed: positions are due a save (MS-111)."""
-
-    def axis_finished(self, axis: Axis, t: float) -> None:
-        """A commanded move or home of this axis has ended (its move group may complete)."""
-
-    def resume_manual(self, axis: Axis, t: float) -> None:
-        """The axis is free again: the joystick takes it over if deflected (MS-83)."""
-
-    def disable_motor(self, axis: Axis, t: float) -> None: ...
-
-    def ensync_toggle(self) -> None:
-        """The axis crossed its ENSYNC position (MS-95)."""
+    def modules_of(self, kind: type[T]) -> tuple[T, ...]:
+        """Every module with capability `kind`, in profile order."""

@@ -11,6 +11,8 @@ from typing import TYPE_CHECKING, Any
 
 from emulator.devices.ms2000.calls import Call, Param, Reply, one_of, run_settings, within
 from emulator.devices.ms2000.modules import Handler, Module, register
+from emulator.devices.ms2000.modules.capabilities import ControlChannel, In0Interrupt, ReportFields, TtlIn
+from emulator.devices.ms2000.modules.events import In0ModeChanged, Reset, on
 from protocols.ms2000 import Fmt
 from protocols.rounding import round_half_away
 
@@ -23,9 +25,8 @@ FACTORY_ZS = {"step": 0.0, "steps": 1, "mode": 0, "timeout_ms": 500}
 
 
 @register
-class InoInt(Module):
+class InoInt(Module, TtlIn, In0Interrupt, ControlChannel):
     name = "INO_INT"
-    provides_in0_interrupt = True
     in0_modes = frozenset({REPEAT_RELATIVE, Z_STACK, REPORT, TOGGLE_OUT})
     observable = "z_stack"
 
@@ -51,7 +52,9 @@ class InoInt(Module):
             if key in self.zs and isinstance(value, int | float):
                 self.zs[key] = value
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
+        now = event.t
         self._stop_reports()
         self._restart_stack(now)
 
@@ -78,11 +81,12 @@ class InoInt(Module):
         }
         return run_settings(call, params, "XYZF", self.host.render(call.key), self.host.ack())
 
-    def in0_mode_changed(self, mode: int, now: float) -> None:
-        if mode != REPORT:
+    @on(In0ModeChanged)
+    def in0_mode_changed(self, event: In0ModeChanged) -> None:
+        if event.mode != REPORT:
             self._stop_reports()
-        if mode == Z_STACK:
-            self._restart_stack(now)
+        if event.mode == Z_STACK:
+            self._restart_stack(event.t)
 
     def in0_trigger(self, mode: int, now: float) -> None:
         if mode == REPEAT_RELATIVE:
@@ -151,7 +155,8 @@ class InoInt(Module):
     def _send_report(self, now: float) -> None:
         ms = round_half_away((now - self._report_start) * 1000)
         fields = [self.host.where(a.units(now)) for a in self.host.report_axes()]
-        fields += self.host.report_fields(now)  # e.g. TRACKING's PMT sum (MS-TRACK-3)
+        # e.g. TRACKING's PMT sum (MS-TRACK-3)
+        fields += [f for m in self.host.modules_of(ReportFields) for f in m.report_fields(now)]
         self.host.unsolicited(" ".join([str(ms), *fields]), now)
         self._report = self.host.at(now + self._period(), self._send_report)
 

@@ -13,6 +13,8 @@ from typing import TYPE_CHECKING, Any
 
 from emulator.devices.ms2000.calls import Call, Param, Reply, run_settings, within
 from emulator.devices.ms2000.modules import Handler, Module, register
+from emulator.devices.ms2000.modules.capabilities import ControlChannel, LcdSegment, TtlOut
+from emulator.devices.ms2000.modules.events import TtlTrailingValue, on
 from emulator.schema import Choice, Field
 from protocols.rounding import round_half_away
 
@@ -25,7 +27,7 @@ FULL = 100  # percent; every channel takes 0…100 (MS-LED-1)
 
 
 @register
-class LedDimmer(Module):
+class LedDimmer(Module, TtlOut, LcdSegment, ControlChannel):
     name = "LED DIMMER"
     knob_fields = (
         Field(
@@ -64,8 +66,10 @@ class LedDimmer(Module):
         }
         return run_settings(call, params, "XYZF", self.host.render(call.key), self.host.ack())
 
-    def ttl_trailing_value(self, out_mode: int, value: float, now: float) -> None:
-        if out_mode == PWM_MODE and self.host.knobs.ttl_pwm_trailing_value == "apply" and 0 <= value <= FULL:
+    @on(TtlTrailingValue)
+    def ttl_trailing_value(self, event: TtlTrailingValue) -> None:
+        value, apply = event.value, self.host.knobs.ttl_pwm_trailing_value == "apply"
+        if event.out_mode == PWM_MODE and apply and 0 <= value <= FULL:
             self.values["X"] = round_half_away(value)
 
     def out0_level(self) -> int | None:

@@ -1,56 +1,100 @@
-"""The modules of one controller, and the only caller of their hooks."""
+"""The modules of one controller: the only caller of their methods and the dispatcher of their events."""
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 from emulator.device import ControlError
 from emulator.devices.ms2000.calls import Call, CommandError, Param, Pending, Reply
 from emulator.devices.ms2000.modules import MODULES, Handler, Module
+from emulator.devices.ms2000.modules.capabilities import (
+    AutoSettings,
+    CatchUp,
+    CommandVeto,
+    ControlChannel,
+    ExtraParams,
+    FocusWheel,
+    In0Interrupt,
+    LcdLine,
+    LcdSegment,
+    PanelButtons,
+    TtlIn,
+    TtlOut,
+)
+from emulator.devices.ms2000.modules.events import Event
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.modules.host import ModuleHost
     from protocols.ms2000 import Shape
 
+T = TypeVar("T")
+
 
 class ModuleSet:
-    """The modules a profile lists, built on one host; the controller calls hooks only through here.
+    """The modules a profile lists, built on one host; the controller reaches them only through here.
 
-    Order among modules: every hook runs on the modules in the profile's `modules` order (the order
-    `BU X` prints, MS-102), except that a front-panel press is offered by `button_priority` first
-    (MS-85; ties in profile order) and a TTL mode is served by the first module declaring it.
+    Order among modules: everything runs on the modules in the profile's `modules` order (the order
+    `BU X` prints, MS-102), event handlers included, except that a front-panel press is offered by
+    `button_priority` first (MS-85; ties in profile order) and a TTL mode is served by the first
+    module declaring it. A capability query (`get`) answers with the first module that has it.
 
     Order in the controller's life:
-    1. construction: modules built in profile order; `handlers()` installed after the base commands
-       (a module may take over a base command), `query_shapes` merged; every handler of the table
-       then runs only after each module's `refuse()` let the command through;
-    2. power-up and software reset (MS-112): `restore()` after the base settings are restored, then,
-       once axes, buttons and low-level mode are back to idle, `reset()`; TTL OUT0 is re-applied
-       after it, so a module's `out0_level()` sees its restored state;
-    3. while running, each when its event happens: for a `TTL` command, `in0_mode_changed()` (X
-       set), `out0_mode_changed()` (Y set), OUT0 re-applied, then `ttl_trailing_value()` (`TTL
-       Y=n v`, MS-24) and OUT0 re-read; `in0_trigger()` on an IN0 edge or a bare `RM`, then, for an
-       edge, `in0_edge()`; `array_arrival()` when ARRAY reaches a cell; `button()` on
-       a release, before any base function; `in0_release()` on an IN0 falling edge; `wheel()` on a
-       wheel turn, before the axis moves; `move_complete()` after the base effects of a completed
-       move (event, `VB X` lines, OUT0 pulse); `halt()` after every axis stopped; `zeroing()` before
-       ZERO (command or button) zeroes the axes; `save()` at `SS Z`; `save_auto()` whenever any
-       remembered setting changes (`restore_auto()` beside `restore()` at power-up and reset);
-    4. whenever asked: `bu_line()`, `lcd_segment()`, `lcd_line()`, `state_char()`, `observe()`,
-       `control_input()`, `report_mask()`, `report_fields()`,
-       `out0_level()`, `out0_pwm()`, `focus_score()`, `button_functions()`, `focus_index()`,
-       `extra_params()` (by a base settings command as it runs).
+    1. construction: modules built in profile order, the event table (class -> handlers) built once;
+       `handlers()` installed after the base commands (a module may take over a base command),
+       `query_shapes` merged; every handler of the table then runs only after each `CommandVeto`
+       let the command through;
+    2. power-up and software reset (MS-112): `restore()` (and `AutoSettings.restore_auto()`) after
+       the base settings are restored, then, once axes, buttons and low-level mode are back to idle,
+       the `Reset` event; TTL OUT0 is re-applied after it, so `out0_level()` sees restored state;
+    3. while running, each when it happens: for a `TTL` command `In0ModeChanged` (X set),
+       `Out0ModeChanged` (Y set), OUT0 re-applied, then `TtlTrailingValue` (`TTL Y=n v`, MS-24) and
+       OUT0 re-read; `in0_trigger()` on an IN0 edge or a bare `RM`, then, for an edge, `In0Edge`;
+       `ArrayArrival` when ARRAY reaches a cell; `RmX` after an accepted `RM X=`; `button()` on a
+       release, before any base function; `in0_release()` on an IN0 falling edge; `FocusWheel` on a
+       wheel turn, before the axis moves; `MoveComplete` after the base effects of a completed move
+       (event, `VB X` lines, OUT0 pulse); `Halt` after every axis stopped; `Zeroing` before ZERO
+       (command or button) zeroes the axes; `save()` at `SS Z`; `save_auto()` whenever any
+       remembered setting changes; `CatchUp` at the end of every model step;
+    4. whenever asked: `bu_line()`, `lcd_segment()`, `LcdLine`, `state_char()`, `observe()`,
+       `control_input()`, `out0_level()`, `out0_pwm()`, `button_functions()`, `ExtraParams` (by a
+       base settings command as it runs), and any capability through `get()`/`all_of()`.
     """
 
     def __init__(self, host: ModuleHost, names: Sequence[str]) -> None:
         #: the profile's list, feature flags (LL COMMANDS) included
         self.names = tuple(names)
         self._modules = [MODULES[n](host) for n in self.names if n in MODULES]
-        self._by_priority = sorted(self._modules, key=lambda m: m.button_priority)
+        self._found: dict[type, tuple[Any, ...]] = {}
+        self._by_priority = sorted(self.all_of(PanelButtons), key=lambda m: m.button_priority)
+        table: dict[type[Event], list[Callable[[Any], None]]] = {}
+        for module in self._modules:
+            for kind, method in module.subscriptions.items():
+                table.setdefault(kind, []).append(getattr(module, method))
+        #: event class -> its handlers in profile order, built once (events.py)
+        self._subscribers = {kind: tuple(handlers) for kind, handlers in table.items()}
 
     def _named(self, name: str) -> Module | None:
         return next((m for m in self._modules if m.name == name), None)
+
+    # ---- events and capabilities ----------------------------------------------------------------
+
+    def emit(self, event: Event) -> None:
+        """Call the handlers of `event`'s class, in profile order."""
+        for handler in self._subscribers.get(type(event), ()):
+            handler(event)
+
+    def all_of(self, kind: type[T]) -> tuple[T, ...]:
+        """The modules with capability `kind` (capabilities.py), in profile order."""
+        found = self._found.get(kind)
+        if found is None:
+            found = self._found[kind] = tuple(m for m in self._modules if isinstance(m, kind))
+        return found
+
+    def get(self, kind: type[T]) -> T | None:
+        """The first module with capability `kind` (the one that owns the value), if any."""
+        found = self.all_of(kind)
+        return found[0] if found else None
 
     # ---- construction -------------------------------------------------------------------------
 
@@ -73,9 +117,9 @@ class ModuleSet:
 
     def guarded(self, table: dict[str, Handler]) -> dict[str, Handler]:
         """The whole command table, each handler behind the modules' `refuse()` vetoes (MS-109).
-        Only modules that define a veto are asked, and without one the table is left as it is:
+        Only modules with `CommandVeto` are asked, and without one the table is left as it is:
         every command passes here."""
-        refusers = [m for m in self._modules if type(m).refuse is not Module.refuse]
+        refusers = self.all_of(CommandVeto)
         if not refusers:
             return table
 
@@ -93,7 +137,7 @@ class ModuleSet:
 
     def extra_params(self, key: str) -> dict[str, Param]:
         """Letters the modules add to the base settings command `key` (`VB T`, MS-109)."""
-        return {letter: p for m in self._modules for letter, p in m.extra_params(key).items()}
+        return {letter: p for m in self.all_of(ExtraParams) for letter, p in m.extra_params(key).items()}
 
     # ---- reports and the control channel --------------------------------------------------------
 
@@ -108,24 +152,28 @@ class ModuleSet:
     def lcd_segments(self, t: float) -> list[str]:
         """The segments of LCD line 2, or the line of a module that takes it alone (§9.0)."""
         states = self.state_chars()
-        for module in self._modules:
+        for module in self.all_of(LcdLine):
             line = module.lcd_line(t, states)
             if line is not None:
                 return [line] if line else []
-        return [s for m in self._modules if (s := m.lcd_segment(t))]
+        return [s for m in self.all_of(LcdSegment) if (s := m.lcd_segment(t))]
 
     def state_chars(self) -> dict[str, str]:
         """Module name -> its one-character state, for modules that have one (MS-SEQ-8)."""
-        return {m.name: c for m in self._modules if (c := m.state_char()) is not None}
+        return {
+            m.name: c
+            for m in self._modules
+            if isinstance(m, LcdSegment) and (c := m.state_char()) is not None
+        }
 
     def observables(self) -> dict[str, Callable[[float], Any]]:
-        return {name: get for m in self._modules for name, get in m.observables().items()}
+        return {name: get for m in self.all_of(ControlChannel) for name, get in m.observables().items()}
 
     def inputs(self) -> set[str]:
-        return {name for m in self._modules for name in m.inputs}
+        return {name for m in self.all_of(ControlChannel) for name in m.inputs}
 
     def control_input(self, name: str, params: dict[str, Any], t: float) -> Any:
-        module = next((m for m in self._modules if name in m.inputs), None)
+        module = next((m for m in self.all_of(ControlChannel) if name in m.inputs), None)
         if module is None:
             raise ControlError(f"no module takes input {name!r}")
         return module.control_input(name, params, t)
@@ -144,83 +192,45 @@ class ModuleSet:
 
     def save_auto(self) -> dict[str, dict[str, Any]]:
         """The settings modules remember as soon as they change (DLED maxima, MS-111)."""
-        return {m.name: section for m in self._modules if (section := m.save_auto())}
+        return {
+            m.name: section
+            for m in self._modules
+            if isinstance(m, AutoSettings) and (section := m.save_auto())
+        }
 
     def restore_auto(self, saved: dict[str, Any], reject: Callable[[str, Any], None]) -> None:
         """Each module's `auto.modules.<name>` section, as `restore` does for `SS Z`."""
         for module in self._modules:
             path = f"auto.modules.{module.name}"
-            _restore_section(module.restore_auto, module.save_auto, saved.get(module.name), path, reject)
-
-    def reset(self, t: float) -> None:
-        for module in self._modules:
-            module.reset(t)
+            data = saved.get(module.name)
+            if isinstance(module, AutoSettings):
+                _restore_section(module.restore_auto, module.save_auto, data, path, reject)
+            else:  # nothing to restore, but a section that is not a mapping is still reported
+                _restore_section(lambda _: None, dict, data, path, reject)
 
     # ---- motion -------------------------------------------------------------------------------
 
-    def halt(self, t: float) -> None:
-        for module in self._modules:
-            module.halt(t)
-
-    def move_complete(self, landed: list[str], t: float) -> None:
-        for module in self._modules:
-            module.move_complete(landed, t)
-
-    def zeroing(self, t: float) -> None:
-        for module in self._modules:
-            module.zeroing(t)
-
     def wheel(self, counts: float, t: float) -> bool:
         """Offer a wheel turn to the modules; True when one took it (the axis does not move)."""
-        return any(m.wheel(counts, t) for m in self._modules)
-
-    def focus_index(self) -> int | None:
-        return next((i for m in self._modules if (i := m.focus_index()) is not None), None)
+        return any(m.wheel(counts, t) for m in self.all_of(FocusWheel))
 
     def catch_up_hooks(self) -> list[Callable[[float], None]]:
-        """The `catch_up` of each module that defines one (most define none: nothing per step)."""
-        return [m.catch_up for m in self._modules if type(m).catch_up is not Module.catch_up]
-
-    def report_fields(self, t: float) -> list[str]:
-        """Fields the modules append to an IN0 mode 5 report, in profile order (MS-TRACK-3)."""
-        return [field for m in self._modules for field in m.report_fields(t)]
-
-    def report_mask(self) -> int | None:
-        """The first module's selection of the axes IN0 mode 5 reports (RING BUFFER's `RM Y`)."""
-        return next((mask for m in self._modules if (mask := m.report_mask()) is not None), None)
-
-    def focus_score(self, t: float) -> int:
-        """`RA Z`: the first module's focus score, 0 without one (MS-117)."""
-        return next((score for m in self._modules if (score := m.focus_score(t)) is not None), 0)
-
-    # ---- RING BUFFER's RM and the modules that follow it (MS-RB-4, MS-ARRAY-5, MS-ARRAY-6) --------
-
-    def rm_x_values(self) -> set[int]:
-        """`RM X=` values some module serves besides 0 (clear): ARRAY's 1."""
-        return {value for m in self._modules for value in m.rm_x_values}
-
-    def rm_x(self, value: int, t: float) -> None:
-        for module in self._modules:
-            module.rm_x(value, t)
-
-    def playback_mode(self) -> int | None:
-        """The first module's ring-buffer playback mode (RING BUFFER's `RM F`)."""
-        return next((mode for m in self._modules if (mode := m.playback_mode()) is not None), None)
+        """The `catch_up` of each module that has the capability (most have not: nothing per step)."""
+        return [m.catch_up for m in self.all_of(CatchUp)]
 
     # ---- TTL (§6.7) ---------------------------------------------------------------------------
 
-    def _in0_module(self, mode: int) -> Module | None:
-        return next((m for m in self._modules if mode in m.in0_modes), None)
+    def _in0_module(self, mode: int) -> TtlIn | None:
+        return next((m for m in self.all_of(TtlIn) if mode in m.in0_modes), None)
 
-    def _out0_module(self, mode: int) -> Module | None:
-        return next((m for m in self._modules if mode in m.out0_modes), None)
+    def _out0_module(self, mode: int) -> TtlOut | None:
+        return next((m for m in self.all_of(TtlOut) if mode in m.out0_modes), None)
 
     def in0_available(self, mode: int) -> bool:
         """Mode 0 always; others need a module serving the mode and the IN0 interrupt (MS-90)."""
         if mode == 0:
             return True
-        interrupt = any(m.provides_in0_interrupt for m in self._modules)
-        return interrupt and self._in0_module(mode) is not None
+        return bool(self.all_of(In0Interrupt)) and self._in0_module(mode) is not None
 
     def in0_trigger(self, mode: int, t: float) -> None:
         module = self._in0_module(mode) if mode else None
@@ -232,24 +242,8 @@ class ModuleSet:
         if module is not None:
             module.in0_release(mode, t)
 
-    def in0_edge(self, t: float) -> None:
-        for module in self._modules:
-            module.in0_edge(t)
-
-    def array_arrival(self, t: float) -> None:
-        for module in self._modules:
-            module.array_arrival(t)
-
-    def in0_mode_changed(self, mode: int, t: float) -> None:
-        for module in self._modules:
-            module.in0_mode_changed(mode, t)
-
     def out0_modes(self) -> set[int]:
-        return {mode for m in self._modules for mode in m.out0_modes}
-
-    def out0_mode_changed(self, mode: int, t: float) -> None:
-        for module in self._modules:
-            module.out0_mode_changed(mode, t)
+        return {mode for m in self.all_of(TtlOut) for mode in m.out0_modes}
 
     def out0_level(self, mode: int) -> int | None:
         """OUT0's level in `mode` when a module drives it, else None (MS-91)."""
@@ -260,10 +254,6 @@ class ModuleSet:
         module = self._out0_module(mode)
         return None if module is None else module.out0_pwm()
 
-    def ttl_trailing_value(self, mode: int, value: float, t: float) -> None:
-        for module in self._modules:
-            module.ttl_trailing_value(mode, value, t)
-
     # ---- buttons (MS-85, MS-86) ---------------------------------------------------------------
 
     def button(self, name: str, press: str, t: float) -> bool:
@@ -272,7 +262,7 @@ class ModuleSet:
 
     def button_functions(self) -> dict[int, Callable[[float], None]]:
         table: dict[int, Callable[[float], None]] = {}
-        for module in self._modules:
+        for module in self.all_of(PanelButtons):
             table.update(module.button_functions())
         return table
 

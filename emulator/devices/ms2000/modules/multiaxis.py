@@ -25,6 +25,8 @@ from emulator.devices.ms2000 import trajectory
 from emulator.devices.ms2000.activity import LIMIT_CODES, LOWER, UPPER, Activity
 from emulator.devices.ms2000.calls import Call, CommandError, Param, Reply, run_settings, within
 from emulator.devices.ms2000.modules import Handler, Module, register
+from emulator.devices.ms2000.modules.capabilities import CommandVeto, ControlChannel, LcdSegment
+from emulator.devices.ms2000.modules.events import Halt, Reset, on
 from emulator.devices.ms2000.modules.multiaxis_path import (
     TAU,
     Geometry,
@@ -55,7 +57,7 @@ FACTORY: dict[str, float] = {"X": 0.0, "Y": 0.0, "Z": 0.0, "F": 0}
 
 
 @register
-class MultiaxisMoves(Module):
+class MultiaxisMoves(Module, CommandVeto, LcdSegment, ControlChannel):
     name = "MULTIAXIS MOVES"
     observable = "multi"
 
@@ -294,10 +296,14 @@ class MultiaxisMoves(Module):
         motion.finished = False
         self._advance(now, kept)
 
-    def halt(self, now: float) -> None:
+    @on(Halt)
+    def halt(self, event: Halt) -> None:
+        now = event.t
         self._finish(now)
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
+        now = event.t
         self._finish(now)
 
     # ---- reports and SS Z ----------------------------------------------------------------------

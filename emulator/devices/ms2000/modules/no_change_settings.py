@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any
 
 from emulator.devices.ms2000.calls import Call, CommandError, Param
 from emulator.devices.ms2000.modules import Module, register
+from emulator.devices.ms2000.modules.capabilities import CommandVeto, ControlChannel, ExtraParams
 from protocols.ms2000 import ErrorCode, Kind
 
 if TYPE_CHECKING:
@@ -29,7 +30,7 @@ PROTECT_OFFSET = 1000
 
 
 @register
-class NoChangeSettings(Module):
+class NoChangeSettings(Module, ExtraParams, CommandVeto, ControlChannel):
     name = "NO CHANGE SETTINGS"
     observable = "no_change_settings"
 

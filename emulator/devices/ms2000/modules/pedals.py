@@ -15,6 +15,8 @@ from emulator.device import ControlError
 from emulator.devices.ms2000.activity import Activity
 from emulator.devices.ms2000.calls import Call, Param, Reply, run_settings, within
 from emulator.devices.ms2000.modules import Handler, Module, register
+from emulator.devices.ms2000.modules.capabilities import ControlChannel
+from emulator.devices.ms2000.modules.events import Halt, Reset, on
 from protocols.ms2000 import Fmt
 
 if TYPE_CHECKING:
@@ -32,7 +34,7 @@ DIRECTION = {"up": 1, "down": -1}
 
 
 @register
-class Pedals(Module):
+class Pedals(Module, ControlChannel):
     name = "PEDALS"
     inputs = frozenset({"pedal"})
 
@@ -58,11 +60,13 @@ class Pedals(Module):
         }
         return run_settings(call, params, "XYZ", self.host.render(call.key), self.host.ack())
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
         self.values = dict(FACTORY)
         self._cancel_release()
 
-    def halt(self, now: float) -> None:
+    @on(Halt)
+    def halt(self, event: Halt) -> None:
         self._cancel_release()
 
     def _cancel_release(self) -> None:

@@ -23,6 +23,8 @@ from typing import TYPE_CHECKING, Any
 from emulator.devices.ms2000.buttons import EXTRA
 from emulator.devices.ms2000.calls import Call, CommandError, Reply, first_error, number
 from emulator.devices.ms2000.modules import Handler, Module, register
+from emulator.devices.ms2000.modules.capabilities import ControlChannel, LcdSegment, PanelButtons
+from emulator.devices.ms2000.modules.events import Reset, Zeroing, on
 from emulator.schema import finite_number
 from protocols.ms2000 import ErrorCode, Kind, Shape
 from protocols.rounding import round_half_away
@@ -64,7 +66,7 @@ def fit(points: list[tuple[float, float, float]]) -> tuple[float, float] | None:
 
 
 @register
-class PlanarCorrection(Module):
+class PlanarCorrection(Module, PanelButtons, LcdSegment, ControlChannel):
     name = "PLANAR CORRECTION"
     button_priority = 60  # MS-85: after AUTOFOCUS, before RING BUFFER
     observable = "planar"
@@ -202,9 +204,11 @@ class PlanarCorrection(Module):
         self.points.clear()
         self.plane = None
 
-    def zeroing(self, now: float) -> None:
+    @on(Zeroing)
+    def zeroing(self, event: Zeroing) -> None:
         """ZERO makes the plane's height 0 here, and everything here reads 0 (MS-PC-2): Z keeps its
         physical place, its commanded position takes what the correction was."""
+        now = event.t
         if self.plane is None:
             return
         rereferenced = replace(self.plane, x0=0.0, y0=0.0)
@@ -279,11 +283,13 @@ class PlanarCorrection(Module):
         self.plane = Plane(*numbers) if len(numbers) == len(keys) else None
         self.enabled = data.get("enabled") is True and self.plane is not None
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
         """Points are volatile; Z follows the restored plane if it is enabled. Positions come back
         in plane coordinates, so attaching it re-expresses nothing. A correction that goes is
         measured in the coordinates the reset has just set (the plane's height is 0 where they
         are 0, as after ZERO): Z ends at its commanded position [choice]."""
+        now = event.t
         self.points.clear()
         wanted = self.plane if self.enabled else None
         if wanted is None and self._active is not None:

@@ -8,11 +8,12 @@ output emulates the mode as mode 2, a pulse of `RT Y` ms at the end of every com
 from __future__ import annotations
 
 from emulator.devices.ms2000.modules import Module, register
+from emulator.devices.ms2000.modules.capabilities import TtlOut
 
 PREPULSE_MODE = 8
 
 
 @register
-class Prepulse(Module):
+class Prepulse(Module, TtlOut):
     name = "PREPULSE"
     out0_modes = frozenset({PREPULSE_MODE})

@@ -25,6 +25,16 @@ from emulator.devices.ms2000.calls import (
     run_settings,
 )
 from emulator.devices.ms2000.modules import Handler, Module, register
+from emulator.devices.ms2000.modules.capabilities import (
+    ControlChannel,
+    LcdSegment,
+    PanelButtons,
+    Playback,
+    ReportAxes,
+    RmXServer,
+    TtlIn,
+)
+from emulator.devices.ms2000.modules.events import Halt, Reset, RmX, on
 from emulator.schema import Bool, Choice, Field
 from protocols.ms2000 import ErrorCode, Kind
 
@@ -40,7 +50,7 @@ FN_NEXT, FN_STORE, FN_CLEAR = 4, 5, 6
 
 
 @register
-class RingBuffer(Module):
+class RingBuffer(Module, ReportAxes, Playback, TtlIn, PanelButtons, LcdSegment, ControlChannel):
     name = "RING BUFFER"
     profile_fields = (
         Field(
@@ -88,7 +98,7 @@ class RingBuffer(Module):
             "slots": [dict(slot) for slot in self.slots],
         }
 
-    def report_mask(self) -> int | None:
+    def report_mask(self) -> int:
         return self.axis_mask
 
     def save(self) -> dict[str, Any]:
@@ -101,12 +111,14 @@ class RingBuffer(Module):
         self.axis_mask = mask if isinstance(mask, int) else self._factory_mask()
         self.mode = mode if mode in (1, 2, 3) else FACTORY_MODE
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
         self.slots.clear()
         self.pointer = 0
         self._stop()
 
-    def halt(self, now: float) -> None:
+    @on(Halt)
+    def halt(self, event: Halt) -> None:
         self._stop()
 
     @property
@@ -154,7 +166,7 @@ class RingBuffer(Module):
             return host.ack()
 
         # `RM X=1` starts ARRAY's commanded stepping; without a module serving it `:N-4` (MS-ARRAY-6)
-        starts = one_of(0, *host.rm_x_values())
+        starts = one_of(0, *(v for m in host.modules_of(RmXServer) for v in m.rm_x_values))
 
         def pointer(value: float) -> float:
             if value != int(value) or not 0 <= value <= max(len(self.slots) - 1, 0):
@@ -189,9 +201,9 @@ class RingBuffer(Module):
     def _rm_x(self, value: int, now: float) -> None:
         if value == 0:
             self.clear(now)
-        self.host.rm_x(value, now)
+        self.host.emit(RmX(now, value))
 
-    def playback_mode(self) -> int | None:
+    def playback_mode(self) -> int:
         return self.mode
 
     # ---- triggers and buttons -----------------------------------------------------------------

@@ -23,7 +23,9 @@ from emulator.device import ControlError
 from emulator.devices.ms2000.buttons import EXTRA, LONG
 from emulator.devices.ms2000.calls import Call, CommandError, Param, Reply, run_settings, whole, within
 from emulator.devices.ms2000.modules import Handler, Module, register
+from emulator.devices.ms2000.modules.capabilities import ControlChannel, LcdSegment, PanelButtons
 from emulator.devices.ms2000.modules.enc_int import COUNTING_MODE
+from emulator.devices.ms2000.modules.events import Halt, MoveComplete, Reset, on
 from emulator.devices.ms2000.modules.scan_plan import Leg, ScanArea, Sweep, plan
 from emulator.devices.ms2000.modules.scan_roles import FAST, SERPENTINE, SLOW, shared_roles
 from emulator.schema import Choice, Field
@@ -57,7 +59,7 @@ def _restored(factory: dict[str, float], data: Any) -> dict[str, float]:
 
 
 @register
-class ScanModule(Module):
+class ScanModule(Module, PanelButtons, LcdSegment, ControlChannel):
     name = "SCAN MODULE"
     profile_fields = (
         Field(
@@ -127,11 +129,13 @@ class ScanModule(Module):
         self.lines = _restored(FACTORY_LINES, data.get("lines"))
         self.roles.restore(data, self.host)
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
         self._finish(IDLE)
         self.drop_pending = 0
 
-    def halt(self, now: float) -> None:
+    @on(Halt)
+    def halt(self, event: Halt) -> None:
         """HALT has stopped the axes: the scan ends at once (86 when one was running)."""
         if self.running:
             self.host.log_error(SCAN_ABORTED)
@@ -301,7 +305,10 @@ class ScanModule(Module):
         if count != self.pixels():
             self.host.log_error(PIXELS_WRONG)
 
-    def move_complete(self, axes: list[str], now: float) -> None:
+    @on(MoveComplete)
+    def move_complete(self, event: MoveComplete) -> None:
+        axes = event.axes
+        now = event.t
         if not self.running or not 0 <= self.leg < len(self.legs):
             return
         leg = self.legs[self.leg]

@@ -34,6 +34,8 @@ from emulator.devices.ms2000.calls import (
     number,
 )
 from emulator.devices.ms2000.modules import Handler, Module, register
+from emulator.devices.ms2000.modules.capabilities import ControlChannel
+from emulator.devices.ms2000.modules.events import Halt, MoveComplete, Reset, on
 from protocols.ms2000 import ErrorCode, Fmt, Kind, error_reply, format_value
 from protocols.rounding import round_half_away
 
@@ -61,7 +63,7 @@ class Seek:
     target: int
 
 
-class _IndexSeek(Module):
+class _IndexSeek(Module, ControlChannel):
     inputs = frozenset({"index_missing"})
 
     def __init__(self, host: ModuleHost) -> None:
@@ -82,13 +84,15 @@ class _IndexSeek(Module):
     def handlers(self) -> dict[str, Handler]:
         return {"SI": self.si} if self.serves else {}
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
         self.last.clear()
         self.found.clear()
         self.seeks.clear()
         self.search = []
 
-    def halt(self, now: float) -> None:
+    @on(Halt)
+    def halt(self, event: Halt) -> None:
         self.seeks.clear()
         self.search = []
 
@@ -161,7 +165,7 @@ class _IndexSeek(Module):
             ok = [self._found(axis, p, count, t) for axis, p, count in search]
             return answer() if all(ok) else Reply.text(error_reply(ErrorCode.FAILED))
 
-        return Pending(due, finish, cancel=lambda t: self.halt(t))
+        return Pending(due, finish, cancel=lambda t: self.halt(Halt(t)))
 
     def _found(self, axis: Axis, p: float, count: int, t: float) -> bool:
         """At the end of the search: set p at the index and the factory soft limits, if found."""
@@ -191,7 +195,10 @@ class _IndexSeek(Module):
         seek.target = axis.target  # after clamping to the limits
         self.seeks[axis.hw_letter] = seek
 
-    def move_complete(self, axes: list[str], now: float) -> None:
+    @on(MoveComplete)
+    def move_complete(self, event: MoveComplete) -> None:
+        axes = event.axes
+        now = event.t
         for axis in self.host.axes:
             seek = self.seeks.get(axis.hw_letter)
             if seek is None or axis.letter not in axes:

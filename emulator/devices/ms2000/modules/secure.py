@@ -28,6 +28,8 @@ from emulator.devices.ms2000.calls import (
     within,
 )
 from emulator.devices.ms2000.modules import Handler, Module, register
+from emulator.devices.ms2000.modules.capabilities import ControlChannel, LcdSegment, TtlOut
+from emulator.devices.ms2000.modules.events import Reset, on
 from protocols.ms2000 import ErrorCode, Fmt, Kind
 
 if TYPE_CHECKING:
@@ -40,7 +42,7 @@ SOLENOID_FACTORY = {"X": 0, "Y": 99, "Z": 30, "F": 5, "T": 250}
 UNLOCKED = 1
 
 
-class _Secure(Module):
+class _Secure(Module, TtlOut, LcdSegment, ControlChannel):
     """What both inserts share: the OUT0 mode, the LCD segment and the observable. `position` is
     the lever (servo) or 0/1 (solenoid): 0.0 is locked."""
 
@@ -126,7 +128,8 @@ class SolenoidLock(_Secure):
             return 0.0
         return float(self.values["Y"] if self.pulling_in else self.values["Z"])
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
         self._cancel_timers()
         self.values = dict(SOLENOID_FACTORY)
         self.position = 0.0
@@ -159,5 +162,6 @@ class ServoLock(_Secure):
     def out0_pwm(self) -> float | None:
         return self.position * 100
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
         self.position = 0.0

@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING, Any
 from emulator.devices.ms2000.buttons import NORMAL
 from emulator.devices.ms2000.calls import NUMBER_LIMIT, Call, Reply, first_error, number
 from emulator.devices.ms2000.modules import Handler, Module, register
+from emulator.devices.ms2000.modules.capabilities import ControlChannel, LcdLine, PanelButtons, TtlOut
+from emulator.devices.ms2000.modules.events import ArrayArrival, Halt, In0Edge, MoveComplete, Reset, RmX, on
 from emulator.devices.ms2000.modules.sequencer_engine import Engine
 from emulator.devices.ms2000.modules.sequencer_program import (
     ARM_COMMAND,
@@ -54,7 +56,7 @@ SEGMENT_MODULES = ("PLANAR CORRECTION", "ARRAY MODULE")
 
 
 @register
-class Sequencer(Module):
+class Sequencer(Module, LcdLine, TtlOut, PanelButtons, ControlChannel):
     name = "SEQUENCER"
     knob_fields = (
         Field(
@@ -160,11 +162,15 @@ class Sequencer(Module):
         sequencer re-initialises with its ALWAYS blocks idle; the halt hook below does the latter."""
         self.host.halt_all(now)
 
-    def halt(self, now: float) -> None:
+    @on(Halt)
+    def halt(self, event: Halt) -> None:
         """HALT stops the sequence too: it is one of the sequences MS-76 ends [choice]."""
+        now = event.t
         self.engine.initialise(False, now)
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
+        now = event.t
         self.log = True
         self.armed_at = now
         self.engine.initialise(False, now)
@@ -172,15 +178,19 @@ class Sequencer(Module):
 
     # ---- conditions from the controller (MS-SEQ-2) ---------------------------------------------
 
-    def in0_edge(self, now: float) -> None:
-        self.engine.outside(TTL_TRIGGER, now)
+    @on(In0Edge)
+    def in0_edge(self, event: In0Edge) -> None:
+        self.engine.outside(TTL_TRIGGER, event.t)
 
-    def array_arrival(self, now: float) -> None:
-        self.engine.outside(ARRAY_MOVE_DONE, now)
+    @on(ArrayArrival)
+    def array_arrival(self, event: ArrayArrival) -> None:
+        self.engine.outside(ARRAY_MOVE_DONE, event.t)
 
-    def move_complete(self, axes: list[str], now: float) -> None:
+    @on(MoveComplete)
+    def move_complete(self, event: MoveComplete) -> None:
         """XYZ_STAGE_NOT_BUSY: the busy→idle transition, seen when a move ends with nothing else
         still moving [choice]."""
+        now = event.t
         if not any(a.busy(now) for a in self.host.axes):
             self.engine.outside(STAGE_NOT_BUSY, now)
 
@@ -227,7 +237,7 @@ class Sequencer(Module):
         elif action == ARRAY_NEXT:
             host.in0_function(ARRAY_IN0_MODE, now)
         elif action == ARRAY_START:
-            host.rm_x(ARRAY_START_RM_X, now)
+            host.emit(RmX(now, ARRAY_START_RM_X))
         elif action >= SEND_WHERE and host.knobs.sequencer_send_actions == "emit":
             self._send(self._report(action, now), now)
 

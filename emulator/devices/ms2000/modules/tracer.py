@@ -17,6 +17,7 @@ from collections.abc import Callable
 from typing import Any
 
 from emulator.devices.ms2000.modules import Module, register
+from emulator.devices.ms2000.modules.capabilities import ControlChannel
 from emulator.schema import Choice, Field
 
 #: MS-TRACER-2: the only rate Tracer Console runs at
@@ -37,7 +38,7 @@ def analog_volts(z_mm: float, low_mm: float, high_mm: float, polarity: str) -> f
 
 
 @register
-class Tracer(Module):
+class Tracer(Module, ControlChannel):
     name = "TRACER"
     knob_fields = (
         Field(

@@ -38,6 +38,13 @@ from emulator.devices.ms2000.calls import (
 )
 from emulator.devices.ms2000.modules import Handler, Module, register
 from emulator.devices.ms2000.modules import tracking_signal as pmt
+from emulator.devices.ms2000.modules.capabilities import (
+    ControlChannel,
+    LcdSegment,
+    PanelButtons,
+    ReportFields,
+)
+from emulator.devices.ms2000.modules.events import Halt, Reset, on
 from protocols.ms2000 import ErrorCode, Fmt, Kind
 from protocols.rounding import round_half_away
 
@@ -72,7 +79,7 @@ FACTORY: dict[str, float] = {
 
 
 @register
-class Tracking(Module):
+class Tracking(Module, ReportFields, PanelButtons, LcdSegment, ControlChannel):
     name = "TRACKING"
     button_priority = 25  # MS-85 does not rank it: after CRISP, before SCAN [choice]
     observable = "tracking"
@@ -366,14 +373,17 @@ class Tracking(Module):
 
     # ---- life cycle and SS Z ------------------------------------------------------------------
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
         self._cancel()
         self.state = IDLE
         self.reason = None
         self.residue = {}
 
-    def halt(self, now: float) -> None:
+    @on(Halt)
+    def halt(self, event: Halt) -> None:
         """HALT stops tracking and calibration (MS-76)."""
+        now = event.t
         self.stop(now)
 
     def save(self) -> dict[str, Any]:

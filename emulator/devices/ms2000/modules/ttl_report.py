@@ -19,6 +19,8 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any
 
 from emulator.devices.ms2000.modules import Module, register
+from emulator.devices.ms2000.modules.capabilities import ControlChannel, TtlIn
+from emulator.devices.ms2000.modules.events import Reset, on
 from emulator.schema import Choice, Field
 from protocols.ms2000 import frame as text_frame
 from protocols.ms2000 import ttl_report as codec
@@ -44,7 +46,7 @@ BITS_PER_CHAR = 10
 
 
 @register
-class TtlReport(Module):
+class TtlReport(Module, TtlIn, ControlChannel):
     name = "TTL REPORT"
     in0_modes = frozenset({MODE})
     observable = "ttl_report"
@@ -92,7 +94,8 @@ class TtlReport(Module):
             "sending": self._latch is not None or now < self._busy_until,
         }
 
-    def reset(self, now: float) -> None:
+    @on(Reset)
+    def reset(self, event: Reset) -> None:
         for timer in (self._latch, self._send):
             if timer is not None:
                 timer.cancel()

@@ -14,6 +14,7 @@ from typing import Any
 
 from emulator.device import ControlError
 from emulator.devices.ms2000.modules import Module, register
+from emulator.devices.ms2000.modules.capabilities import ControlChannel
 
 #: one knob count at speed 1 moves 0.1 µm (MS-KNOB-2)
 MM_PER_COUNT_AT_SPEED_1 = 0.0001
@@ -22,7 +23,7 @@ MAX_COUNTS = 1e6
 
 
 @register
-class XyKnobs(Module):
+class XyKnobs(Module, ControlChannel):
     name = "XY KNOBS"
     inputs = frozenset({"xy_knob"})
 
