@@ -1,4 +1,4 @@
-"""Line errors among a port's queued host input (emulator/runner.py).
+"""Line errors among a port's queued host input (emulator/pacing.py keeps them per port).
 
 A serial port's UART reports characters it received with a framing or parity error
 (`PortSink.line_error`). Such a character waits in the port's input pacer like any other byte, so it

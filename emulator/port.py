@@ -1,40 +1,39 @@
 """One port of a hosted device as the runner keeps it (emulator/runner.py): its transport, the host
-seen on it, pacing in both directions, injected faults and what it lost.
+seen on it, pacing in both directions, injected faults, and the bounds on what waits in it.
+
+Flow control (emulator/transports/base.py): a port reads only while `room` says the emulated wire
+takes more, stops at INPUT_BACKLOG of input or OUTPUT_BACKLOG of output waiting for their wire time,
+and is told to read again (`resume_reading`) once both are down to half. Output a host does not
+take is counted and logged once per episode (`count_drops`).
 """
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 from typing import Any
 
 from emulator.device import HostLine
 from emulator.line import REALISTIC, Pacer
-from emulator.schema import finite_number, show_number
 from emulator.transports.base import Transport
 
-#: the value each corrupted byte is XORed with (`corrupt` fault)
-CORRUPT_MASK = 0xFF
+log = logging.getLogger("stage_emu.runner")
 
-#: Fault parameters: the ones each fault takes, and the range of each (a day, a million replies or
-#: bytes, a minute). JSON lets NaN, Infinity and 1e300 through; these ranges keep them out.
-FAULT_PARAMS: dict[str, tuple[str, ...]] = {
-    "disconnect": ("seconds",),
-    "hang": ("seconds",),
-    "drop": ("count",),
-    "corrupt": ("count",),
-    "latency": ("ms",),
-    "clear": (),
-}
-PARAM_RANGES: dict[str, tuple[int, int]] = {
-    "seconds": (0, 86400),
-    "count": (1, 1_000_000),
-    "ms": (0, 60000),
-}
+#: Host input a port has taken but the device has not yet received (its wire time has not ended),
+#: per port, in bytes. At this backlog the port stops reading, so a host writing faster than its
+#: baud rate blocks as on a real serial port. It is a real serial driver's transmit buffer (one
+#: page), so a host's single write of any frame or command batch is taken whole at once: the largest
+#: is an MP-285 program download of 99 vectors, 1588 bytes. 4 KiB is 4.3 s of wire at 9600 8N1.
+INPUT_BACKLOG = 4096
+#: Device output not yet through its wire time, per port, in bytes: at this backlog the port stops
+#: reading too (the device is busy sending), so a host sending commands faster than their replies
+#: can go out does not queue replies without limit.
+OUTPUT_BACKLOG = 4096
 
 
 @dataclass
 class Faults:
-    """Injected port faults (control channel `fault`)."""
+    """Injected port faults (control channel `fault`; emulator/port_faults.py injects and expires them)."""
 
     hung: bool = False
     drop_replies: int = 0
@@ -82,43 +81,58 @@ class Channel:
     faults: Faults = field(default_factory=Faults)
     stats: PortStats = field(default_factory=PortStats)
     #: the line mismatch last warned about, and one not yet warned about because no byte has
-    #: crossed the line since the settings began to differ (emulator/runner.py `_check_mismatch`)
+    #: crossed the line since the settings began to differ (emulator/mismatch.py)
     reported_mismatch: tuple[Any, ...] = ()
     pending_mismatch: tuple[Any, ...] = ()
-    #: what the pacing was last computed from (paced, device settings, host settings)
+    #: what the pacing was last computed from (paced, device settings, host settings; pacing.py)
     paced_for: tuple[Any, ...] = ()
     #: the (host, device) settings last checked for a mismatch
     checked_for: tuple[Any, ...] = ()
-    #: the port was told it had no room (`DeviceRunner.input_room`) and has stopped reading
+    #: the port was told it had no room (`room`) and has stopped reading
     throttled: bool = False
+    #: the runner's direct step may take this port's bytes: unpaced, no traffic records, no hang
+    #: (`DeviceRunner.host_data`; recomputed whenever one of those changes)
+    express: bool = False
+
+    def room(self) -> int:
+        """Host bytes the port may take now (`PortSink.room`): 0 while either direction is backed
+        up, and then the port stops reading until `resume_reading` says so."""
+        room = 0 if len(self.to_host) >= OUTPUT_BACKLOG else max(INPUT_BACKLOG - len(self.from_host), 0)
+        if room == 0:
+            self.throttled = True
+        return room
 
 
-def unsent(ch: Channel) -> str | None:
-    """Why output on `ch` goes nowhere now, or None when it is sent."""
-    if not ch.attached:
-        return "no host attached"
-    if ch.faults.hung:
-        return "hang fault"
-    if ch.faults.vanished:
-        return "the port is disconnected (fault)"
-    return None
+def resume_reading(channels: dict[str, Channel]) -> None:
+    """Let ports read again once their backlogs are down to half (not at every byte: a port then
+    reads in batches, not one syscall per character). Only a port told there was no room has
+    stopped (emulator/transports/base.py)."""
+    for ch in channels.values():
+        if (
+            ch.throttled
+            and ch.transport is not None
+            and len(ch.from_host) <= INPUT_BACKLOG // 2
+            and len(ch.to_host) <= OUTPUT_BACKLOG // 2
+        ):
+            ch.throttled = False
+            ch.transport.resume_reading()
 
 
-def fault_params(fault: str, params: dict[str, Any]) -> dict[str, float]:
-    """The fault's parameters, checked: known names only, each a finite number in its range."""
-    if fault not in FAULT_PARAMS:
-        raise ValueError(f"unknown fault {fault!r}; one of: {', '.join(FAULT_PARAMS)}")
-    allowed = FAULT_PARAMS[fault]
-    unknown = sorted(set(params) - set(allowed))
-    if unknown:
-        takes = f"takes only {', '.join(allowed)}" if allowed else "takes no parameters"
-        raise ValueError(f"{fault} {takes}; got {', '.join(unknown)}")
-    values: dict[str, float] = {}
-    for name, value in params.items():
-        low, high = PARAM_RANGES[name]
-        if not finite_number(value) or not low <= value <= high:
-            raise ValueError(f"{name} must be a number >= {low} and <= {high}, got {value!r}")
-        if name == "count" and value != int(value):
-            raise ValueError(f"count must be a whole number, got {show_number(value)}")
-        values[name] = value
-    return values
+def count_drops(ch: Channel, device: str, dropped: int) -> None:
+    """After a write to the port: `dropped` bytes of it the host's buffer did not take. Logged once
+    per episode of dropping, and once more when the host takes output again."""
+    stats = ch.stats
+    if dropped:
+        stats.output_dropped += dropped
+        if not stats.dropping:
+            stats.dropping = True
+            log.warning(
+                "%s/%s: host is not reading; output that does not fit its buffer is dropped "
+                "(%d bytes dropped on this port so far)",
+                device,
+                ch.name,
+                stats.output_dropped,
+            )
+    elif stats.dropping:
+        stats.dropping = False
+        log.info("%s/%s: host takes output again", device, ch.name)

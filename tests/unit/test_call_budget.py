@@ -30,14 +30,16 @@ CASES = {
     # remembered 234, 171, 346; with unpaced output sent without the pacer, resumes only for a
     # throttled port and the timer's due time found without temporaries 203, 142, 327; with unpaced
     # host bytes handed to the model directly (no input pacer, no whole pump) 184, 122, 325; with the
-    # daemon's work budget (a step asks the model for its next deadline) 192, 130, 338
-    "ms2000 W X Y fast": ("ms2000", b"W X Y\r", b":A 0 0\r\n", FAST, 210),
-    "mp285 c fast": ("mp285", b"c\r", None, FAST, 140),
-    "ms2000 W X Y realistic": ("ms2000", b"W X Y\r", b":A 0 0\r\n", REALISTIC, 375),
+    # daemon's work budget (a step asks the model for its next deadline) 192, 130, 338; with the runner
+    # split by job (the line settings read once per step, the direct step's predicate and the early
+    # release span kept until what they depend on changes) 178, 119, 320
+    "ms2000 W X Y fast": ("ms2000", b"W X Y\r", b":A 0 0\r\n", FAST, 195),
+    "mp285 c fast": ("mp285", b"c\r", None, FAST, 128),
+    "ms2000 W X Y realistic": ("ms2000", b"W X Y\r", b":A 0 0\r\n", REALISTIC, 355),
     # the framework alone: the test-only echo device costs a handful of calls (before the direct
     # step 103, with it 97, of which ~35 are the manual clock's own step after the reply; with the
-    # work budget 108)
-    "probe E fast": (PROBE, b"E hi\r", b"hi\r", FAST, 120),
+    # work budget 108; with the runner split by job 89)
+    "probe E fast": (PROBE, b"E hi\r", b"hi\r", FAST, 103),
 }
 
 

@@ -6,7 +6,7 @@ from __future__ import annotations
 import pytest
 
 from emulator.clock import MAX_SCALE, MAX_STEP, MIN_SCALE, ScaledClock, check_scale, check_step
-from emulator.port import fault_params
+from emulator.port_faults import fault_params
 from emulator.schema import Int, SchemaError, show_number
 from protocols.mp285 import INT32_MAX
 

@@ -10,7 +10,7 @@ from click.testing import CliRunner, Result
 
 from emulator.cli import main
 from emulator.device import LineSettings
-from emulator.runner import INPUT_BACKLOG
+from emulator.port import INPUT_BACKLOG
 from emulator.session import RX, TX, Chunk, Header, SessionWriter
 
 LINE = LineSettings(baud=9600, data_bits=8, parity="none", stop_bits=1, rtscts=False, xonxoff=False)

@@ -12,7 +12,7 @@ import pytest
 import serial
 
 import emulator.urlhandler  # noqa: F401  (registers stageemu://)
-from emulator.runner import INPUT_BACKLOG
+from emulator.port import INPUT_BACKLOG
 from emulator.transports.inprocess import RECEIVE_BUFFER
 from tests.conformance.mp285.wire import DUMP_B
 

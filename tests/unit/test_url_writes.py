@@ -17,9 +17,10 @@ import emulator.urlhandler  # noqa: F401  (registers stageemu://)
 from emulator.clock import ManualClock
 from emulator.device import HostServices, LineSettings
 from emulator.line import FAST
+from emulator.port import INPUT_BACKLOG
 from emulator.profile import load_profile
 from emulator.registry import family
-from emulator.runner import INPUT_BACKLOG, DeviceRunner
+from emulator.runner import DeviceRunner
 from emulator.transports.pty import READ_CHUNK
 from tests.support.memory_transport import MemoryTransport
 
