@@ -13,7 +13,7 @@ from click.testing import CliRunner, Result
 
 from emulator.cli import main
 from emulator.device import LineSettings
-from emulator.replay import ReplayOptions, compare, emulator_url, open_port, play, replay
+from emulator.replay import ReplayOptions, _timing, compare, emulator_url, open_port, play, replay
 from emulator.session import (
     RX,
     TX,
@@ -26,6 +26,7 @@ from emulator.session import (
     iter_decode,
     load_session,
 )
+from emulator.session_decode import Exchange
 
 LINE = LineSettings(baud=9600, data_bits=8, parity="none", stop_bits=1, rtscts=False, xonxoff=False)
 TOLERANCE = ReplayOptions(tolerance_s=0.005)
@@ -242,3 +243,20 @@ def test_a_long_session_is_compared_as_it_is_read(tmp_path: Path) -> None:
         tracemalloc.stop()
     assert (compared, found) == (writes, [])
     assert peak < 2e6, f"{peak / 1e6:.1f} MB held"
+
+
+def test_a_late_allowance_widens_only_the_late_side() -> None:
+    """`late_allowance_s` (a test suite on a loaded machine): a reply may come that much later than
+    the tolerance allows, never earlier."""
+    want = Exchange(None, 0.0, pieces=[(0.010, b"\r")])
+    late = Exchange(None, 0.0, pieces=[(0.500, b"\r")])
+    early = Exchange(None, 0.0, pieces=[(-0.030, b"\r")])
+    assert _timing(want, late, 0.030, late_allowance=1.0) == []
+    assert _timing(want, late, 0.030) == [
+        "first byte 490.0 ms late (tolerance 30 ms)",
+        "last byte 490.0 ms late (tolerance 30 ms)",
+    ]
+    assert _timing(want, early, 0.030, late_allowance=1.0) == [
+        "first byte 40.0 ms early (tolerance 30 ms)",
+        "last byte 40.0 ms early (tolerance 30 ms)",
+    ]
