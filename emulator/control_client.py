@@ -1,5 +1,5 @@
 """The control channel's blocking Python client (stdlib only): what `stage-emu ctl`, `view`, the
-launcher and the tests use to talk to a running daemon (emulator/control.py has the protocol).
+launcher and the tests use to talk to a running daemon (emulator/hosting/control.py has the protocol).
 
 `ControlRequests` is the client's vocabulary on top of one `request` call; `ControlClient` sends it
 over the daemon's socket, and an in-process port answers the same (emulator/urlhandler/control.py)."""

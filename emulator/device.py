@@ -10,7 +10,7 @@ model's part in the protected hook): `advance(now)` keeps `self.now`, the latest
 model has been brought to, then calls `_advance(now)`; `receive(data, now)` advances to `now` first,
 then calls `_receive(data, now)`, so a model only ever receives with every earlier event processed.
 
-Host obligations (see emulator/runner.py):
+Host obligations (see emulator/hosting/runner.py):
 - Times passed in are non-decreasing across all calls.
 - Before a call stamped `now` other than `receive` (`line_changed`, `control_input`, `observe`,
   `snapshot`) the host has called `advance(now)`.
@@ -38,8 +38,8 @@ from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any, Protocol
 
-from emulator.nvstore import ReportingStore, StorageError
-from emulator.profile import Profile
+from emulator.profiles.profile import Profile
+from emulator.storage.nvstore import ReportingStore, StorageError
 
 MAIN = "main"
 
@@ -110,7 +110,7 @@ class ModemLines:
 FRAMING_ERROR = "framing"
 PARITY_ERROR = "parity"
 
-# Kinds of traffic-log records (emulator/trafficlog.py). Received bytes:
+# Kinds of traffic-log records (emulator/hosting/trafficlog.py). Received bytes:
 FRAME = "frame"  # a complete command (or control sequence) the device acted on
 GARBLED = "garbled"  # a character the line mismatch corrupted, as the receiving end read it
 LOST = "lost"  # bytes the device never acted on: deaf, busy, silenced, hung, dropped at reset ...
@@ -118,6 +118,9 @@ STRAY = "stray"  # bytes outside any command: discarded junk, a bad frame, a lon
 # Sent bytes (and GARBLED, LOST):
 REPLY = "reply"  # the answer to a command
 UNSOLICITED = "unsolicited"  # sent on the device's own account (a report, a crash signature)
+# Events a model builds only while explaining (emulator/hosting/trafficlog.py `LOG_ONLY`):
+# CRISP's lock-loop samples and AUTOFOCUS's focus-value samples (docs/ms2000.md §12)
+CRISP_SAMPLE, AF_SAMPLE = "crisp_sample", "af_sample"
 
 
 @dataclass(frozen=True)
@@ -169,7 +172,7 @@ class Notes:
 
 
 class Store(Protocol):
-    """A device's non-volatile memory as the model sees it (emulator/nvstore.py has the kinds).
+    """A device's non-volatile memory as the model sees it (emulator/storage/nvstore.py has the kinds).
 
     `load()` and `erase()` raise StorageError. `save()` never raises: the outcome goes to the report
     callback the store was opened with, either before `save` returns or later, on the host's thread
@@ -200,7 +203,7 @@ class HostServices:
     #: directory for non-volatile device memory, written synchronously by `open_store`'s default
     #: stores; None = nothing persists beyond the model (its store is in memory)
     state_dir: Path | None = None
-    #: how the host opens stores instead (the daemon's write on a worker thread, emulator/daemon.py)
+    #: how the host opens stores instead (the daemon's write on a worker thread, emulator/hosting/daemon.py)
     stores: StoreOpener | None = None
 
     def open_store(self, device_id: str, report: StoreReport) -> Store:

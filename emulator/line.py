@@ -4,7 +4,7 @@ A pseudo-terminal moves bytes at memory speed. With `timing: realistic` the devi
 released one character at a time, each character arriving when its stop bit ends on a real wire
 (`bits_per_char / baud`), and host input is handed to the device no earlier than the end of its own
 wire time at the host's rate (bytes of one write back to back). With `timing: fast` both happen at
-once. All times are device seconds (emulator/clock.py).
+once. All times are device seconds (emulator/hosting/clock.py).
 """
 
 from __future__ import annotations

@@ -33,7 +33,7 @@ import pytest
 
 if TYPE_CHECKING:
     from emulator.control_client import ControlRequests
-    from emulator.launcher import RunningDaemon
+    from emulator.hosting.launcher import RunningDaemon
     from emulator.urlhandler.hosted import HostedDevice
 
 #: marker -> what a test marked with it needs that only the emulator has
@@ -195,7 +195,7 @@ def _serve_flags(options: dict[str, Any]) -> list[str]:
 
 def _port_count(profiles: Sequence[str], rig: Path | None) -> int:
     """How many readiness lines the daemon prints: one per port of the rig it will serve."""
-    from emulator.rig import load_rig, rig_from_profiles
+    from emulator.hosting.rig import load_rig, rig_from_profiles
 
     spec = load_rig(rig) if rig is not None else rig_from_profiles(list(profiles))
     return sum(len(device.ports) for device in spec.devices)
@@ -213,7 +213,7 @@ def _serve_virtual(profiles: Sequence[str], timing: str) -> StageEmu:
 def _launch(args: list[str], port_count: int) -> StageEmu:
     # imported here, not at the top: pytest loads this plugin in every run of the environment,
     # most of which never start a daemon
-    from emulator.launcher import start_daemon
+    from emulator.hosting.launcher import start_daemon
 
     # not under pytest's basetemp: that can be too deep for the control socket's path (107 bytes)
     workdir = Path(tempfile.mkdtemp(prefix="stage-emu-"))

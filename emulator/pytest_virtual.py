@@ -15,8 +15,8 @@ from collections.abc import Iterator, Sequence
 from functools import partial
 from typing import Any
 
-from emulator.clock import VirtualClock
 from emulator.control_client import ControlFailure, ControlRequests
+from emulator.hosting.clock import VirtualClock
 from emulator.urlhandler.control import HostedControl
 from emulator.urlhandler.hosted import HostedDevice, serve
 from emulator.urlhandler.url import VIRTUAL, UrlOptions
@@ -25,7 +25,7 @@ from emulator.urlhandler.url import VIRTUAL, UrlOptions
 def serve_virtual(profiles: Sequence[str], timing: str) -> dict[str, HostedDevice]:
     """One device per profile, named as `stage-emu serve --profile` names them (`ms2000`, then
     `ms2000-2` for the same profile again)."""
-    from emulator.rig import rig_from_profiles
+    from emulator.hosting.rig import rig_from_profiles
 
     names = [device.name for device in rig_from_profiles(list(profiles)).devices]
     devices: dict[str, HostedDevice] = {}

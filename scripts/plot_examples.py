@@ -23,7 +23,7 @@ from typing import Any
 
 from emulator.cli import main as stage_emu
 from emulator.control_client import ControlClient
-from emulator.launcher import RunningDaemon, start_daemon
+from emulator.hosting.launcher import RunningDaemon, start_daemon
 from protocols.clients import MS2000
 
 ROOT = Path(__file__).resolve().parents[1]

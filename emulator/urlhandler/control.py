@@ -1,5 +1,5 @@
 """The control channel of an in-process device (`port.control` of a `stageemu://` port): the daemon's
-requests, answered in this process by the daemon's own dispatch (emulator/control.py), with the
+requests, answered in this process by the daemon's own dispatch (emulator/hosting/control.py), with the
 socket client's methods (emulator/control_client.py). Inputs, observables, snapshots, faults,
 resets and the clock work as on a daemon; `subscribe` queues the device's pushed events here, and
 `events(timeout)` waits for them as a host read does (in virtual time, device time passes). Traffic
@@ -14,8 +14,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from emulator.control import ControlServer
 from emulator.control_client import ControlFailure, ControlRequests
+from emulator.hosting.control import ControlServer
 
 if TYPE_CHECKING:
     from emulator.urlhandler.hosted import HostedDevice

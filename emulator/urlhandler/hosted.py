@@ -37,11 +37,11 @@ from typing import Any, TypeVar
 
 from serial.serialutil import SerialException, SerialTimeoutException
 
-from emulator import registry
 from emulator.device import MAIN, HostLine, HostServices, ModemLines, Store, StoreReport
-from emulator.nvstore import ReportingStore, StateInUse
-from emulator.profile import ProfileError, load_profile
-from emulator.runner import DeviceRunner
+from emulator.hosting.runner import DeviceRunner
+from emulator.profiles import registry
+from emulator.profiles.profile import ProfileError, load_profile
+from emulator.storage.nvstore import ReportingStore, StateInUse
 from emulator.urlhandler.lines import ModemTransport
 from emulator.urlhandler.timebase import Deadline, RealTime, VirtualTime
 from emulator.urlhandler.url import VIRTUAL, UrlOptions

@@ -1,4 +1,4 @@
-"""An in-process port with modem lines (emulator/transports/modem.py): the host's RTS and DTR reach
+"""An in-process port with modem lines (emulator/hosting/transports/modem.py): the host's RTS and DTR reach
 it, the device's CTS, DSR, CD and RI are read from it, and each side's flow control holds bytes.
 
 - Output: while the device does RTS/CTS flow control and the host's RTS is off, what the runner hands
@@ -13,9 +13,9 @@ it, the device's CTS, DSR, CD and RI are read from it, and each side's flow cont
 from __future__ import annotations
 
 from emulator.device import HostLine, ModemLines
-from emulator.transports.base import PortSink
-from emulator.transports.inprocess import InProcessTransport
-from emulator.transports.modem import ModemLink
+from emulator.hosting.transports.base import PortSink
+from emulator.hosting.transports.inprocess import InProcessTransport
+from emulator.hosting.transports.modem import ModemLink
 
 
 class ModemTransport(InProcessTransport):

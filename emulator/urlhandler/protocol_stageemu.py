@@ -7,7 +7,7 @@ Each open builds a factory-fresh device from the profile (emulator/urlhandler/ur
 form) and closes it with the port. The host's line settings reach the model as they would through a
 daemon's port, and more fully: a PTY hides parity and data bits, here they are known, so a host at
 the wrong baud rate, data bits or parity gets the garbled bytes the real device would give it.
-The port carries modem lines as an RFC 2217 port does (emulator/transports/modem.py): `rts` and
+The port carries modem lines as an RFC 2217 port does (emulator/hosting/transports/modem.py): `rts` and
 `dtr` reach the device, `cts`, `dsr`, `cd` and `ri` are the device's. Nothing on this path needs a
 pseudo-terminal, termios or fcntl: it runs on Windows and macOS too.
 """

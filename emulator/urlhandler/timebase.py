@@ -16,8 +16,8 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from emulator.clock import ScaledClock, VirtualClock
-from emulator.runner import DeviceRunner
+from emulator.hosting.clock import ScaledClock, VirtualClock
+from emulator.hosting.runner import DeviceRunner
 
 #: Shortest sleep of a real-time wait, wall seconds: a model that kept reporting a deadline already
 #: passed would otherwise turn a read into a busy loop. Far below a character time at any baud.

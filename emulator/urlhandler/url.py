@@ -12,8 +12,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from urllib.parse import parse_qs, urlsplit
 
-from emulator.clock import check_scale
 from emulator.device import MAIN
+from emulator.hosting.clock import check_scale
 from emulator.line import REALISTIC, TIMINGS
 
 SCHEME = "stageemu"

@@ -19,7 +19,7 @@ from typing import Any, Literal
 
 import serial
 
-from emulator.launcher import RunningDaemon, start_daemon
+from emulator.hosting.launcher import RunningDaemon, start_daemon
 
 ROOT = Path(__file__).resolve().parents[2]
 #: a reply later than this is a hung daemon or floor, not a slow one: the bench stops, loudly

@@ -14,13 +14,13 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 
-from emulator.clock import ManualClock
 from emulator.device import Device, HostServices, LineSettings
+from emulator.hosting.clock import ManualClock
+from emulator.hosting.runner import DeviceRunner
+from emulator.hosting.transports.inprocess import InProcessTransport
 from emulator.line import FAST
-from emulator.profile import load_profile
-from emulator.registry import family
-from emulator.runner import DeviceRunner
-from emulator.transports.inprocess import InProcessTransport
+from emulator.profiles.profile import load_profile
+from emulator.profiles.registry import family
 from scripts.perf.common import BenchError, Result, p50_p99
 
 HOST = LineSettings(9600, None, None, 1, False, False)

@@ -29,7 +29,7 @@ from typing import Protocol
 
 import serial
 
-from emulator.launcher import RunningDaemon
+from emulator.hosting.launcher import RunningDaemon
 from protocols.mp285 import GetPosition, SetVelocity, encode_position
 from scripts.perf import inprocess
 from scripts.perf.common import (

@@ -24,7 +24,7 @@ from multiprocessing.connection import Connection
 from multiprocessing.process import BaseProcess
 from pathlib import Path
 
-from emulator.launcher import write_rig
+from emulator.hosting.launcher import write_rig
 from protocols.mp285 import GetPosition, encode_position
 from scripts.perf.common import (
     REPLY_TIMEOUT,

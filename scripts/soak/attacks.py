@@ -27,7 +27,7 @@ from typing import Any
 import serial
 
 from emulator.control_client import ControlClient
-from emulator.launcher import RunningDaemon, start_daemon, write_rig
+from emulator.hosting.launcher import RunningDaemon, start_daemon, write_rig
 from scripts.soak.probes import Latencies, cpu_percent, fd_count, round_trips, rss_mb, settle
 
 MEASURED = "measured"

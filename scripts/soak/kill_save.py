@@ -1,5 +1,5 @@
 """SIGKILL an MS2000 daemon at a random moment of an `SS Z` save, restart it, and check what the
-kill left in the state directory (MS-111: saved settings survive a kill -9; emulator/nvstore.py).
+kill left in the state directory (MS-111: saved settings survive a kill -9; emulator/storage/nvstore.py).
 
 `kill_during_save` is used with a few cycles by tests/integration/test_kill_during_save.py and with
 many by the torture suite (scripts/torture.py). Every daemon gets its own link directory and control
@@ -22,7 +22,7 @@ from typing import Any
 
 import serial
 
-from emulator.launcher import RunningDaemon, start_daemon
+from emulator.hosting.launcher import RunningDaemon, start_daemon
 
 ARGS = ["--profile", "ms2000", "--timing", "fast"]
 DEVICE = "ms2000"

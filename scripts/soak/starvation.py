@@ -2,7 +2,7 @@
 
 Three devices run work that scales with device time (a SEQUENCER stepping every millisecond, an
 ARRAY of a million tiny cells, an engaged CRISP lock updating every 10 ms) and the clock is set to
-10 000 device seconds per wall second. Each falls behind the clock (emulator/lag.py) instead of
+10 000 device seconds per wall second. Each falls behind the clock (emulator/hosting/lag.py) instead of
 holding the loop: a neighbour device and the control channel keep answering, memory stays flat, and
 SIGTERM ends the daemon at once. Figures: the neighbour's `W X` and a control `list` round trip
 (p99, ms) while starved, the daemon's RSS before and after, how far behind each device got, how
@@ -19,7 +19,7 @@ from pathlib import Path
 import serial
 
 from emulator.control_client import ControlClient
-from emulator.launcher import RunningDaemon, start_daemon, write_rig
+from emulator.hosting.launcher import RunningDaemon, start_daemon, write_rig
 from scripts.soak.attacks import Outcome
 from scripts.soak.probes import Latencies, round_trips, rss_mb
 

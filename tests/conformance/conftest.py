@@ -36,8 +36,8 @@ from serial import rfc2217
 
 import emulator.urlhandler  # noqa: F401  (registers stageemu:// URLs for --port)
 from emulator.control_client import ControlClient, ControlRequests
-from emulator.profile import Profile, load_profile
-from emulator.registry import channels_of
+from emulator.profiles.profile import Profile, load_profile
+from emulator.profiles.registry import channels_of
 from emulator.urlhandler.control import HostedControl
 from emulator.urlhandler.hosted import HostedDevice, serve
 from emulator.urlhandler.url import SCHEME, VIRTUAL, UrlOptions

@@ -3,7 +3,7 @@
 the target and must get the recorded replies, byte for byte and in time. On a real controller
 (`--port ... --device ...`) the sessions of its family whose profile is the family's own run.
 
-emulator/replay.py plays a session on the wall clock, with a thread reading the port: in virtual
+emulator/tools/replay.py plays a session on the wall clock, with a thread reading the port: in virtual
 time that thread's reads would move device time ahead of the schedule. So in virtual time (the
 default target) a session replays on a device of the same profile in this process in real time
 (`stageemu://PROFILE`), as `stage-emu replay` does without `--port`.
@@ -16,8 +16,8 @@ from pathlib import Path
 
 import pytest
 
-from emulator.replay import ReplayOptions, emulator_url, replay
-from emulator.session import load_session
+from emulator.tools.replay import ReplayOptions, emulator_url, replay
+from emulator.tools.session import load_session
 from tests.conformance.conftest import Target
 
 SESSIONS = sorted(Path(__file__).parent.glob("*/sessions/*.jsonl"))

@@ -12,11 +12,11 @@ from typing import Any
 import pytest
 from click.testing import CliRunner
 
-from emulator.capture import LineOptions, capture
-from emulator.capture.mp285 import plan as mp285_plan
-from emulator.capture.ms2000 import plan as ms2000_plan
 from emulator.cli import main
 from emulator.control_client import ControlClient
+from emulator.tools.capture import LineOptions, capture
+from emulator.tools.capture.mp285 import plan as mp285_plan
+from emulator.tools.capture.ms2000 import plan as ms2000_plan
 from tests.support.capture import mismatches, served_profile
 from tests.support.daemon import RunningDaemon, start_daemon
 

@@ -28,7 +28,7 @@ from tests.support.daemon import ROOT, RunningDaemon, start_daemon
 
 PROBE = ROOT / "tests" / "support" / "probe.yaml"
 CHAR_9600 = 10 / 9600
-#: the runner releases a byte up to this much before its instant (emulator/walltimer.py's early
+#: the runner releases a byte up to this much before its instant (emulator/hosting/walltimer.py's early
 #: wake-up, 0.5 ms at most), so the host may see the last byte that much sooner than the wire's end
 EARLY_S = 0.001
 #: generous: only a hang takes this long on any machine

@@ -12,7 +12,7 @@ from emulator.control_client import ControlClient
 from tests.support.daemon import start_daemon
 
 CHAR_9600 = 10 / 9600
-#: the runner may release a byte up to half a millisecond before its instant (emulator/walltimer.py)
+#: the runner may release a byte up to half a millisecond before its instant (emulator/hosting/walltimer.py)
 EARLY_S = 0.001
 #: generous: only a hang takes this long on any machine
 HANG_S = 10.0

@@ -1,5 +1,5 @@
 """An MS2000 daemon killed with SIGKILL during `SS Z` always restarts with the old or the new saved
-settings, never a corrupt file nor leftover temporary files (MS-111, emulator/nvstore.py)."""
+settings, never a corrupt file nor leftover temporary files (MS-111, emulator/storage/nvstore.py)."""
 
 from __future__ import annotations
 

@@ -20,7 +20,7 @@ import serial
 
 import emulator.urlhandler  # noqa: F401  (registers the stageemu:// scheme)
 from emulator.control_client import ControlClient
-from emulator.launcher import write_rig
+from emulator.hosting.launcher import write_rig
 from tests.support.daemon import ROOT, RunningDaemon, start_daemon
 
 CLI = [sys.executable, "-m", "emulator.cli"]

@@ -11,7 +11,7 @@ import pytest
 from click.testing import CliRunner
 
 from emulator.cli import main
-from emulator.plot_scan import read_focus
+from emulator.tools.plot_scan import read_focus
 from protocols.clients import MS2000
 from scripts.plot_examples import CRISP_DEVICE, PATIENCE_S, crisp_lock, serve
 

@@ -13,8 +13,8 @@ import pytest
 from click.testing import CliRunner
 
 from emulator.cli import main
-from emulator.plot import Session
-from emulator.plot_scan import read_session
+from emulator.tools.plot import Session
+from emulator.tools.plot_scan import read_session
 from scripts.plot_examples import ARRAY_DEVICE, TRACER_DEVICE, array_self_scan, gcode_circle, serve
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

@@ -20,7 +20,7 @@ from pathlib import Path
 
 import pytest
 
-from emulator.session import TX, load_session
+from emulator.tools.session import TX, load_session
 from scripts.record_sessions import record, running_proxy
 from tests.support.daemon import ROOT, RunningDaemon, start_daemon
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from emulator.launcher import start_daemon
+from emulator.hosting.launcher import start_daemon
 from tests.support.daemon import ROOT
 
 pytest_plugins = ["pytester"]

@@ -19,9 +19,9 @@ import pytest
 import serial
 from rich.console import Console
 
-from emulator.cli_view import full_refresh, render, update
+from emulator.cli.view import full_refresh, render, update
 from emulator.control_client import ControlClient
-from emulator.view import ViewState
+from emulator.tools.view import ViewState
 from protocols.clients import MS2000
 from tests.support.daemon import ROOT, RunningDaemon, start_daemon
 

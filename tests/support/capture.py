@@ -11,8 +11,8 @@ from typing import Any
 import serial
 from click.testing import CliRunner
 
-from emulator.capture.readings import Reading
 from emulator.cli import main
+from emulator.tools.capture.readings import Reading
 from protocols.ms2000 import query_shape
 
 

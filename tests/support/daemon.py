@@ -1,4 +1,4 @@
-"""The daemon launcher for tests: the product's own (emulator/launcher.py), run from the repository
+"""The daemon launcher for tests: the product's own (emulator/hosting/launcher.py), run from the repository
 with the test-only probe family registered when asked."""
 
 from __future__ import annotations
@@ -7,8 +7,8 @@ import os
 from collections.abc import Callable
 from pathlib import Path
 
-from emulator.launcher import RunningDaemon
-from emulator.launcher import start_daemon as launch
+from emulator.hosting.launcher import RunningDaemon
+from emulator.hosting.launcher import start_daemon as launch
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from emulator.device import HostLine
-from emulator.transports.base import PortSink, Transport
+from emulator.hosting.transports.base import PortSink, Transport
 
 
 class MemoryTransport(Transport):

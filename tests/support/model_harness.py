@@ -1,4 +1,4 @@
-"""One host for model-level tests: drives any `Device` on a manual clock the way emulator/runner.py
+"""One host for model-level tests: drives any `Device` on a manual clock the way emulator/hosting/runner.py
 does, with no transport, traffic log or faults in between. Times are device seconds.
 
 - The time cursor `now` only moves forward. `advance(until)` stops at every instant something is due
@@ -36,7 +36,7 @@ SETTLE_STEPS = 10_000
 
 
 class ModelHarness(Generic[D]):
-    """Drives the model `make_device(t0)` on a manual clock, as emulator/runner.py hosts it."""
+    """Drives the model `make_device(t0)` on a manual clock, as emulator/hosting/runner.py hosts it."""
 
     def __init__(self, make_device: Callable[[float], D], *, t0: float = 0.0, paced: bool = True) -> None:
         self.make_device = make_device

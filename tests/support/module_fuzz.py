@@ -12,7 +12,7 @@ from typing import Any, NamedTuple
 
 from hypothesis import strategies as st
 
-from emulator.profile import Profile, load_profile
+from emulator.profiles.profile import Profile, load_profile
 from protocols import ms2000 as p
 from tests.support.fuzz import ms2000_lines
 from tests.unit.ms2000.conftest import Harness

@@ -38,8 +38,8 @@ from fractions import Fraction
 from pathlib import Path
 
 from emulator.device import HostLine
+from emulator.hosting.transports.pty import host_settings
 from emulator.line import char_time
-from emulator.transports.pty import host_settings
 from emulator.uart import Char, Framing, garble
 
 #: read per wakeup from a master

@@ -14,7 +14,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from emulator import registry
 from emulator.device import (
     FRAME,
     MAIN,
@@ -25,8 +24,9 @@ from emulator.device import (
     HostServices,
     LineSettings,
 )
-from emulator.profile import Config, Line, Profile, line_section
-from emulator.schema import Bool, Schema, Section, setting
+from emulator.profiles import registry
+from emulator.profiles.profile import Config, Line, Profile, line_section
+from emulator.profiles.schema import Bool, Schema, Section, setting
 
 #: the probe's profile (tests/support/probe.yaml)
 PROBE_PROFILE = str(Path(__file__).with_name("probe.yaml"))

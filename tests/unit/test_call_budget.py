@@ -12,13 +12,13 @@ import pstats
 
 import pytest
 
-from emulator.clock import ManualClock
 from emulator.device import HostServices, LineSettings
-from emulator.lag import WorkBudget
+from emulator.hosting.clock import ManualClock
+from emulator.hosting.lag import WorkBudget
+from emulator.hosting.runner import DeviceRunner
 from emulator.line import FAST, REALISTIC
-from emulator.profile import load_profile
-from emulator.registry import family
-from emulator.runner import DeviceRunner
+from emulator.profiles.profile import load_profile
+from emulator.profiles.registry import family
 from tests.support.memory_transport import MemoryTransport
 from tests.support.probe_device import PROBE_PROFILE as PROBE
 

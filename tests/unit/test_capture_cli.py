@@ -11,7 +11,7 @@ import yaml
 from click.testing import CliRunner, Result
 
 from emulator.cli import main
-from emulator.profile import load_profile
+from emulator.profiles.profile import load_profile
 from emulator.urlhandler.url import VIRTUAL
 
 MS2000 = f"stageemu://ms2000-crisp?time={VIRTUAL}"

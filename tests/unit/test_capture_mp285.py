@@ -11,10 +11,10 @@ import pytest
 import serial
 
 import emulator.urlhandler  # noqa: F401  (stageemu:// URLs)
-from emulator.capture import Capture, CaptureError, LineOptions, capture
-from emulator.capture.mp285 import plan
-from emulator.capture.run import capture_from
-from emulator.profile import load_profile
+from emulator.profiles.profile import load_profile
+from emulator.tools.capture import Capture, CaptureError, LineOptions, capture
+from emulator.tools.capture.mp285 import plan
+from emulator.tools.capture.run import capture_from
 from emulator.urlhandler.hosted import serve
 from emulator.urlhandler.url import VIRTUAL, UrlOptions
 from tests.support.capture import Rewriting, mismatches, served_profile

@@ -14,11 +14,11 @@ import serial
 import yaml
 
 import emulator.urlhandler  # noqa: F401  (stageemu:// URLs)
-from emulator.capture import Capture, LineOptions, capture
-from emulator.capture.ms2000 import is_read_only, plan
-from emulator.capture.readings import Query
-from emulator.capture.run import capture_from
-from emulator.profile import load_profile
+from emulator.profiles.profile import load_profile
+from emulator.tools.capture import Capture, LineOptions, capture
+from emulator.tools.capture.ms2000 import is_read_only, plan
+from emulator.tools.capture.readings import Query
+from emulator.tools.capture.run import capture_from
 from emulator.urlhandler.hosted import HostedDevice, serve
 from emulator.urlhandler.url import VIRTUAL, UrlOptions
 from tests.support.capture import Rewriting, mismatches, served_profile

@@ -9,10 +9,10 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from emulator import registry
 from emulator.cli import main
 from emulator.device import HostServices
-from emulator.profile import MAX_PROBLEMS, bundled_dir, bundled_names, display_path, load_profile
+from emulator.profiles import registry
+from emulator.profiles.profile import MAX_PROBLEMS, bundled_dir, bundled_names, display_path, load_profile
 from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)
 
 

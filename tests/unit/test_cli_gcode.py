@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from emulator import cli_gcode
+from emulator.cli import gcode as cli_gcode
 from emulator.cli import main
 
 

@@ -1,4 +1,4 @@
-"""The command line loads a subcommand's module only when it runs (emulator/cli.py): `--version` and
+"""The command line loads a subcommand's module only when it runs (emulator/cli/__init__.py): `--version` and
 `ctl list` start without the daemon, asyncio, the models, the profiles or rich (issue "Fast,
 deterministic feedback", item 4: 0.5-0.6 s each before, every subcommand's imports paid by all).
 The help listing, made from a table instead of the modules, stays what click prints."""
@@ -19,7 +19,15 @@ from click.testing import CliRunner
 from emulator.cli import COMMANDS, main
 
 #: modules only a daemon, a model, a profile, a session or a screen needs
-HEAVY = ("asyncio", "yaml", "serial", "rich", "matplotlib", "emulator.daemon", "emulator.profile")
+HEAVY = (
+    "asyncio",
+    "yaml",
+    "serial",
+    "rich",
+    "matplotlib",
+    "emulator.hosting.daemon",
+    "emulator.profiles.profile",
+)
 
 #: run `main(ARGS)` in a fresh interpreter; print every module it imported
 PROBE = """
@@ -57,11 +65,12 @@ def test_ctl_list_imports_only_the_control_client(tmp_path: Path) -> None:
     assert ours(modules) == {
         "emulator",
         "emulator.cli",
-        "emulator.cli_common",
-        "emulator.cli_ctl",
-        "emulator.cli_names",
+        "emulator.cli.common",
+        "emulator.cli.ctl",
+        "emulator.cli.names",
         "emulator.control_client",
-        "emulator.runtime",
+        "emulator.storage",
+        "emulator.storage.runtime",
     }
     assert heavy(modules) == set()
 

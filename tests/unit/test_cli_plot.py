@@ -12,7 +12,7 @@ import pytest
 from click.testing import CliRunner, Result
 
 from emulator.cli import main
-from emulator.cli_plot import NEEDS_MATPLOTLIB
+from emulator.cli.plot import NEEDS_MATPLOTLIB
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 

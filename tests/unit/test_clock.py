@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from emulator.clock import MAX_SCALE, MAX_STEP, MIN_SCALE, ManualClock, ScaledClock
+from emulator.hosting.clock import MAX_SCALE, MAX_STEP, MIN_SCALE, ManualClock, ScaledClock
 
 
 class FakeWall:

@@ -11,11 +11,11 @@ from typing import Any
 
 import pytest
 
-from emulator import control
-from emulator.clock import ScaledClock
-from emulator.control import MAX_CLIENTS, SUBSCRIBER_BACKLOG, ControlServer
-from emulator.daemon import ERROR_LOG_INTERVAL, _RateLimitedErrors
-from emulator.trafficlog import TrafficLog
+from emulator.hosting import control
+from emulator.hosting.clock import ScaledClock
+from emulator.hosting.control import MAX_CLIENTS, SUBSCRIBER_BACKLOG, ControlServer
+from emulator.hosting.daemon import ERROR_LOG_INTERVAL, _RateLimitedErrors
+from emulator.hosting.trafficlog import TrafficLog
 
 
 def reply(server: ControlServer, request: str) -> dict[str, Any]:

@@ -11,14 +11,14 @@ from typing import Any
 
 import pytest
 
-from emulator.clock import ManualClock, ScaledClock
-from emulator.control import SUBSCRIBER_BACKLOG, ControlServer
 from emulator.device import HostServices
+from emulator.hosting.clock import ManualClock, ScaledClock
+from emulator.hosting.control import SUBSCRIBER_BACKLOG, ControlServer
+from emulator.hosting.runner import DeviceRunner
+from emulator.hosting.trafficlog import TrafficLog
 from emulator.line import FAST, REALISTIC, char_time
-from emulator.profile import load_profile
-from emulator.registry import family
-from emulator.runner import DeviceRunner
-from emulator.trafficlog import TrafficLog
+from emulator.profiles.profile import load_profile
+from emulator.profiles.registry import family
 from tests.support.memory_transport import MemoryTransport
 from tests.unit.test_control import FakeWriter
 

@@ -16,8 +16,8 @@ from emulator.devices.mp285.commands import TABLE as MP285_TABLE
 from emulator.devices.mp285.schema import Mp285Config
 from emulator.devices.ms2000.model import Ms2000Device
 from emulator.devices.ms2000.schema import SCHEMA as MS2000_SCHEMA
-from emulator.profile import bundled_names, load_profile
-from emulator.schema import Section, schema_fields, spec_of
+from emulator.profiles.profile import bundled_names, load_profile
+from emulator.profiles.schema import Section, schema_fields, spec_of
 from protocols.ms2000.commands import BY_KEY
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"

@@ -11,7 +11,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from emulator.device import FRAME, GARBLED, LOST, STRAY, Emission, LineSettings
-from emulator.profile import load_profile
+from emulator.profiles.profile import load_profile
 from tests.support.fuzz import fuzz_settings
 from tests.unit.mp285.harness import Bench
 from tests.unit.mp285.test_mp285_fuzz import KNOB_SETS, chunks, feed, recover_and_query

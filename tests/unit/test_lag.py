@@ -1,5 +1,5 @@
 """A device with more work than the CPU can do falls behind the clock in bounded steps and reaches
-the same outcome later (emulator/lag.py; issue "Hardening, round two", item 1).
+the same outcome later (emulator/hosting/lag.py; issue "Hardening, round two", item 1).
 
 The work budget is measured on a fake timer that advances one unit per reading, so a step's slice is
 a fixed number of model events and every run is deterministic."""
@@ -14,14 +14,14 @@ from typing import Any
 
 import pytest
 
-from emulator.clock import ManualClock, ScaledClock
-from emulator.control import ControlServer
 from emulator.device import HostServices, LineSettings
-from emulator.lag import DeviceClock, WorkBudget
+from emulator.hosting.clock import ManualClock, ScaledClock
+from emulator.hosting.control import ControlServer
+from emulator.hosting.lag import DeviceClock, WorkBudget
+from emulator.hosting.runner import DeviceRunner
 from emulator.line import FAST
-from emulator.profile import load_profile
-from emulator.registry import family
-from emulator.runner import DeviceRunner
+from emulator.profiles.profile import load_profile
+from emulator.profiles.registry import family
 from tests.support.memory_transport import MemoryTransport
 
 HOST = LineSettings(9600, None, None, 1, False, False)

@@ -18,8 +18,8 @@ from pathlib import Path
 
 import pytest
 
-from emulator import nvstore, runtime
-from emulator.nvstore import (
+from emulator.storage import nvstore, runtime
+from emulator.storage.nvstore import (
     LEGACY_TEMP_AGE_S,
     FlashWriter,
     NvStore,
@@ -286,13 +286,13 @@ def test_erase_drops_the_waiting_image_and_waits_for_the_write_in_progress(
 
 #: another process: opens the store named on its command line, says so, and keeps it until killed
 HOLDER = (
-    "import sys; from pathlib import Path; from emulator.nvstore import NvStore;"
+    "import sys; from pathlib import Path; from emulator.storage.nvstore import NvStore;"
     "store = NvStore(Path(sys.argv[1]), sys.argv[2]); store.save({'by': 'holder'});"
     "print('held', flush=True); sys.stdin.read()"
 )
 #: another process: tries to open the store, prints the refusal or `opened`
 TRY = (
-    "import sys; from pathlib import Path; from emulator.nvstore import NvStore, StateInUse\n"
+    "import sys; from pathlib import Path; from emulator.storage.nvstore import NvStore, StateInUse\n"
     "try:\n    NvStore(Path(sys.argv[1]), sys.argv[2])\n"
     "except StateInUse as exc:\n    print(exc)\nelse:\n    print('opened')"
 )

@@ -1,4 +1,4 @@
-"""`stage-emu plot`'s reading of a traffic log (emulator/plot.py): positions from the devices' own
+"""`stage-emu plot`'s reading of a traffic log (emulator/tools/plot.py): positions from the devices' own
 `move` records, interpolated between knots and superseded by later records; ARRAY, SCAN and OUT0
 events; one-line errors for logs it cannot plot. The MS2000 and MP-285 records come from the real
 models under the real runner on a manual clock, with a traffic log."""
@@ -13,16 +13,16 @@ from typing import Any
 
 import pytest
 
-from emulator.clock import ManualClock
 from emulator.device import HostServices, LineSettings
+from emulator.hosting.clock import ManualClock
+from emulator.hosting.runner import DeviceRunner
+from emulator.hosting.trafficlog import TrafficLog
 from emulator.line import FAST
-from emulator.plot import POINTS, Leg, Session, Track, TrackBuilder
-from emulator.plot_scan import read_log, read_session
-from emulator.profile import load_profile
-from emulator.readers import ReadError
-from emulator.registry import family
-from emulator.runner import DeviceRunner
-from emulator.trafficlog import TrafficLog
+from emulator.profiles.profile import load_profile
+from emulator.profiles.registry import family
+from emulator.tools.plot import POINTS, Leg, Session, Track, TrackBuilder
+from emulator.tools.plot_scan import read_log, read_session
+from emulator.tools.readers import ReadError
 from protocols import mp285
 from tests.support.memory_transport import MemoryTransport
 from tests.support.model_harness import ModelHarness
@@ -97,7 +97,7 @@ def test_no_laser_edges_means_no_laser_styling() -> None:
 # ---- bad logs -----------------------------------------------------------------------------------
 
 
-#: the fields every record of a real log has besides its own (emulator/trafficlog.py)
+#: the fields every record of a real log has besides its own (emulator/hosting/trafficlog.py)
 RX = {"wall": 0.0, "device": "stage", "dir": "rx", "port": "main"}
 EV = {"wall": 0.0, "device": "s", "dir": "ev"}
 

@@ -1,6 +1,6 @@
 """The focus story in the traffic log and `stage-emu plot`'s reading and figure of it: CRISP's `crisp`
 state events and `crisp_sample` lock-loop samples, AUTOFOCUS's `af_start`/`af_end` runs and
-`af_sample` frames (emulator/plot_focus.py, emulator/plot_focus_figure.py). Per-update samples are
+`af_sample` frames (emulator/tools/plot_focus.py, emulator/tools/plot_focus_figure.py). Per-update samples are
 built only while a traffic log is kept and reach only the log; state and run events reach control
 subscribers too. Real models under the real runner on a manual clock; synthetic logs for the reader."""
 
@@ -16,21 +16,21 @@ import pytest
 from click.testing import CliRunner
 
 from emulator.cli import main
-from emulator.clock import ManualClock
 from emulator.device import HostServices, LineSettings
+from emulator.hosting.clock import ManualClock
+from emulator.hosting.runner import DeviceRunner
+from emulator.hosting.trafficlog import AF_SAMPLE, CRISP_SAMPLE, TrafficLog
 from emulator.line import FAST
-from emulator.plot_focus import AfRun, StateChange
-from emulator.plot_scan import focus_device, read_focus, scan_records
-from emulator.profile import load_profile
-from emulator.readers import ReadError
-from emulator.registry import family
-from emulator.runner import DeviceRunner
-from emulator.trafficlog import AF_SAMPLE, CRISP_SAMPLE, TrafficLog
+from emulator.profiles.profile import load_profile
+from emulator.profiles.registry import family
+from emulator.tools.plot_focus import AfRun, StateChange
+from emulator.tools.plot_scan import focus_device, read_focus, scan_records
+from emulator.tools.readers import ReadError
 from tests.support.memory_transport import MemoryTransport
 from tests.support.model_harness import ModelHarness
 
 matplotlib.use("Agg")
-from emulator.plot_focus_figure import draw_focus
+from emulator.tools.plot_focus_figure import draw_focus
 
 
 def write_log(path: Path, records: list[dict[str, Any]]) -> Path:

@@ -8,8 +8,8 @@ from pathlib import Path
 import pytest
 
 import tests.support.probe_device  # noqa: F401  (registers the `probe` family)
-from emulator.profile import ProfileError, load_profile
-from emulator.schema import (
+from emulator.profiles.profile import ProfileError, load_profile
+from emulator.profiles.schema import (
     Choice,
     Derived,
     Field,

@@ -12,8 +12,15 @@ import pytest
 from click.testing import CliRunner
 
 from emulator.cli import main
-from emulator.profile import ProfileError, load_profile
-from emulator.yamlsource import MAX_DEPTH, MAX_FILE_BYTES, SourceError, load_located, merge, read_source
+from emulator.profiles.profile import ProfileError, load_profile
+from emulator.profiles.yamlsource import (
+    MAX_DEPTH,
+    MAX_FILE_BYTES,
+    SourceError,
+    load_located,
+    merge,
+    read_source,
+)
 from scripts.soak.hostile_profiles import BIG, SECRET, write_cases
 
 #: a sanity bound only, on this process's CPU time (a loaded machine cannot inflate it): the cases

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from emulator.profile import MAX_CHAIN, ProfileError, load_profile
-from emulator.registry import family
-from emulator.schema import (
+from emulator.profiles.profile import MAX_CHAIN, ProfileError, load_profile
+from emulator.profiles.registry import family
+from emulator.profiles.schema import (
     ListOf,
     MapOf,
     Nullable,

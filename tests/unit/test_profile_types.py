@@ -8,8 +8,8 @@ from typing import Any, Union, get_args, get_origin, get_type_hints
 
 import pytest
 
-from emulator.profile import bundled_names, load_profile
-from emulator.schema import Schema, schema_fields
+from emulator.profiles.profile import bundled_names, load_profile
+from emulator.profiles.schema import Schema, schema_fields
 
 
 def conforms(value: Any, hint: Any) -> bool:

@@ -13,7 +13,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from emulator.device import LineSettings, ModemLines
-from emulator.transports.pty import EXTPROC, OUTPUT_LIMIT, READ_CHUNK, PtyTransport
+from emulator.hosting.transports.pty import EXTPROC, OUTPUT_LIMIT, READ_CHUNK, PtyTransport
 
 TIMEOUT = 5.0
 

@@ -1,4 +1,4 @@
-"""Host line settings read through the PTY master (emulator/transports/pty.py), including the
+"""Host line settings read through the PTY master (emulator/hosting/transports/pty.py), including the
 arbitrary rates a host sets with BOTHER and TCSETS2."""
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ from collections.abc import Iterator
 
 import pytest
 
-from emulator.transports.pty import BOTHER, CBAUD, TCGETS2, host_settings
+from emulator.hosting.transports.pty import BOTHER, CBAUD, TCGETS2, host_settings
 
 TCSETS2 = 0x402C542B
 #: struct termios2: four tcflag_t, c_line, 19 control characters, then c_ispeed and c_ospeed

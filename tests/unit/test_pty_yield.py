@@ -1,5 +1,5 @@
 """The PTY transport gives up the CPU after the first write of a loop turn only
-(emulator/transports/pty.py `yield_once_per_turn`): a yield per write let a burst of one-byte
+(emulator/hosting/transports/pty.py `yield_once_per_turn`): a yield per write let a burst of one-byte
 replies cost a time slice per byte on a busy machine."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import asyncio
 
 import pytest
 
-from emulator.transports import pty
+from emulator.hosting.transports import pty
 
 
 def test_a_burst_of_writes_yields_once_per_loop_turn(monkeypatch: pytest.MonkeyPatch) -> None:

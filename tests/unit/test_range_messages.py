@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import pytest
 
-from emulator.clock import MAX_SCALE, MAX_STEP, MIN_SCALE, ScaledClock, check_scale, check_step
-from emulator.port_faults import fault_params
-from emulator.schema import Int, SchemaError, show_number
+from emulator.hosting.clock import MAX_SCALE, MAX_STEP, MIN_SCALE, ScaledClock, check_scale, check_step
+from emulator.hosting.port_faults import fault_params
+from emulator.profiles.schema import Int, SchemaError, show_number
 from protocols.mp285 import INT32_MAX
 
 

@@ -1,5 +1,5 @@
-"""The bounded reader every offline command shares (emulator/readers.py), the thinning `plot` uses
-(emulator/decimate.py) and the progress line (emulator/progress.py); and, for each of `trace`,
+"""The bounded reader every offline command shares (emulator/tools/readers.py), the thinning `plot` uses
+(emulator/tools/decimate.py) and the progress line (emulator/tools/progress.py); and, for each of `trace`,
 `plot`, `replay` and `gcode --dry-run`, what it says of a file it must not read (issue "Hardening,
 round two", item 5): one line naming the file, the command's bad-input status, no traceback."""
 
@@ -14,9 +14,17 @@ import pytest
 from click.testing import CliRunner
 
 from emulator.cli import main
-from emulator.decimate import Buckets, ends, extremes
-from emulator.progress import EVERY, INTERVAL_S, Progress
-from emulator.readers import MAX_DEPTH, LineReader, ReadError, TooDeep, json_records, json_value, open_regular
+from emulator.tools.decimate import Buckets, ends, extremes
+from emulator.tools.progress import EVERY, INTERVAL_S, Progress
+from emulator.tools.readers import (
+    MAX_DEPTH,
+    LineReader,
+    ReadError,
+    TooDeep,
+    json_records,
+    json_value,
+    open_regular,
+)
 
 # ---- open_regular -------------------------------------------------------------------------------
 

@@ -1,4 +1,4 @@
-"""Replaying a session (emulator/replay.py): the comparison on synthetic exchanges, the host side
+"""Replaying a session (emulator/tools/replay.py): the comparison on synthetic exchanges, the host side
 played on the in-process emulator, and the `replay`/`proxy` commands' exit codes and messages."""
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from click.testing import CliRunner, Result
 
 from emulator.cli import main
 from emulator.device import LineSettings
-from emulator.replay import ReplayOptions, _timing, compare, emulator_url, open_port, play, replay
-from emulator.session import (
+from emulator.tools.replay import ReplayOptions, _timing, compare, emulator_url, open_port, play, replay
+from emulator.tools.session import (
     RX,
     TX,
     Chunk,
@@ -26,7 +26,7 @@ from emulator.session import (
     iter_decode,
     load_session,
 )
-from emulator.session_decode import Exchange
+from emulator.tools.session_decode import Exchange
 
 LINE = LineSettings(baud=9600, data_bits=8, parity="none", stop_bits=1, rtscts=False, xonxoff=False)
 TOLERANCE = ReplayOptions(tolerance_s=0.005)

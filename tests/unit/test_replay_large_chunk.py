@@ -10,8 +10,8 @@ from click.testing import CliRunner, Result
 
 from emulator.cli import main
 from emulator.device import LineSettings
-from emulator.port import INPUT_BACKLOG
-from emulator.session import RX, TX, Chunk, Header, SessionWriter
+from emulator.hosting.port import INPUT_BACKLOG
+from emulator.tools.session import RX, TX, Chunk, Header, SessionWriter
 
 LINE = LineSettings(baud=9600, data_bits=8, parity="none", stop_bits=1, rtscts=False, xonxoff=False)
 #: generous: the replay itself takes about half a second (its grace period)

@@ -1,7 +1,8 @@
-"""Modem lines on the RFC 2217 transport, seen by pyserial's own client (emulator/transports/modem.py):
-the device's declared lines arrive in NOTIFY-MODEMSTATE; with the device's RTS/CTS flow control the
-client's RTS holds the device's output and CTS follows the device's room for input; a client that
-set RTS/CTS while CTS is off has its bytes held, not passed on, while its options are still answered.
+"""Modem lines on the RFC 2217 transport, seen by pyserial's own client
+(emulator/hosting/transports/modem.py): the device's declared lines arrive in NOTIFY-MODEMSTATE; with the
+device's RTS/CTS flow control the client's RTS holds the device's output and CTS follows the device's room for
+input; a client that set RTS/CTS while CTS is off has its bytes held, not passed on, while its options are
+still answered.
 
 Every wait is for a condition (the sink's or the client's), never for a time; a client call that
 sets a line returns once the server has acknowledged it, so what the server read before that
@@ -18,9 +19,9 @@ import pytest
 import serial
 
 from emulator.device import LineSettings, ModemLines
-from emulator.transports.modem import HELD_INPUT_LIMIT
-from emulator.transports.pty import OUTPUT_LIMIT
-from emulator.transports.rfc2217 import Rfc2217Transport
+from emulator.hosting.transports.modem import HELD_INPUT_LIMIT
+from emulator.hosting.transports.pty import OUTPUT_LIMIT
+from emulator.hosting.transports.rfc2217 import Rfc2217Transport
 from tests.unit.test_pty_flow import TIMEOUT, until
 from tests.unit.test_tcp_transport import HostSink
 

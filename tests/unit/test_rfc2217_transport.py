@@ -15,7 +15,7 @@ import serial
 from serial import rfc2217
 
 from emulator.device import HostLine
-from emulator.transports.rfc2217 import MAX_SUBOPTION, Rfc2217Transport, describe_bad_option
+from emulator.hosting.transports.rfc2217 import MAX_SUBOPTION, Rfc2217Transport, describe_bad_option
 from tests.unit.test_pty_flow import until
 from tests.unit.test_tcp_transport import HostSink
 

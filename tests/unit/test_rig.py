@@ -7,8 +7,8 @@ from pathlib import Path
 
 import pytest
 
-from emulator.profile import ProfileError, bundled_dir
-from emulator.rig import load_rig, rig_from_profiles
+from emulator.hosting.rig import load_rig, rig_from_profiles
+from emulator.profiles.profile import ProfileError, bundled_dir
 from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)
 
 

@@ -9,14 +9,14 @@ from pathlib import Path
 
 import pytest
 
-from emulator.clock import ManualClock, ScaledClock
 from emulator.device import HostServices, LineSettings
+from emulator.hosting.clock import ManualClock, ScaledClock
+from emulator.hosting.port import INPUT_BACKLOG, OUTPUT_BACKLOG
+from emulator.hosting.runner import RELEASE_EARLY_S, DeviceRunner
+from emulator.hosting.trafficlog import TrafficLog
 from emulator.line import FAST, REALISTIC
-from emulator.port import INPUT_BACKLOG, OUTPUT_BACKLOG
-from emulator.profile import load_profile
-from emulator.registry import family
-from emulator.runner import RELEASE_EARLY_S, DeviceRunner
-from emulator.trafficlog import TrafficLog
+from emulator.profiles.profile import load_profile
+from emulator.profiles.registry import family
 from tests.support.memory_transport import MemoryTransport
 from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)
 

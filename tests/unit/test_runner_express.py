@@ -10,14 +10,14 @@ from typing import Any
 from hypothesis import given
 from hypothesis import strategies as st
 
-from emulator import mismatch
-from emulator.clock import ManualClock
 from emulator.device import HostServices, LineSettings
+from emulator.hosting import mismatch
+from emulator.hosting.clock import ManualClock
+from emulator.hosting.port import Channel
+from emulator.hosting.runner import DeviceRunner
 from emulator.line import FAST, REALISTIC
-from emulator.port import Channel
-from emulator.profile import load_profile
-from emulator.registry import family
-from emulator.runner import DeviceRunner
+from emulator.profiles.profile import load_profile
+from emulator.profiles.registry import family
 from tests.support.fuzz import fuzz_settings
 from tests.support.memory_transport import MemoryTransport
 from tests.support.probe_device import PROBE_PROFILE as PROBE

@@ -7,11 +7,11 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
-from emulator.clock import ManualClock
 from emulator.device import HostServices, LineSettings
+from emulator.hosting.clock import ManualClock
+from emulator.hosting.runner import DeviceRunner
 from emulator.line import FAST, REALISTIC
-from emulator.profile import load_profile
-from emulator.runner import DeviceRunner
+from emulator.profiles.profile import load_profile
 from tests.support.memory_transport import MemoryTransport
 from tests.support.probe_device import PROBE_PROFILE as PROBE
 from tests.support.probe_device import ProbeDevice

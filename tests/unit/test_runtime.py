@@ -1,4 +1,4 @@
-"""What the daemon may create and remove on disk (emulator/runtime.py, control socket claim).
+"""What the daemon may create and remove on disk (emulator/storage/runtime.py, control socket claim).
 
 The rule under test: the daemon removes only what it created; everything else is refused with one line.
 """
@@ -14,10 +14,10 @@ from pathlib import Path
 
 import pytest
 
-from emulator import runtime
-from emulator.clock import ScaledClock
-from emulator.control import ControlServer
-from emulator.runtime import (
+from emulator.hosting.clock import ScaledClock
+from emulator.hosting.control import ControlServer
+from emulator.storage import runtime
+from emulator.storage.runtime import (
     LINK,
     READY,
     SOCKET,

@@ -10,8 +10,8 @@ import itertools
 import pytest
 
 from emulator.device import FRAMING_ERROR, PARITY_ERROR
-from emulator.line_errors import LineErrors
-from emulator.transports.serial_port import LineError, Piece, error_kind, unmark
+from emulator.hosting.line_errors import LineErrors
+from emulator.hosting.transports.serial_port import LineError, Piece, error_kind, unmark
 
 #: data with FFs (a data FF is doubled), 00s, a break and errors on FF, 00 and ordinary characters
 STREAM: list[Piece] = [

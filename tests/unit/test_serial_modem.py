@@ -1,5 +1,5 @@
 """A serial port's RTS and DTR carry the device's modem lines to the host through a null-modem cable
-(the host reads them as CTS and as DSR and CD): emulator/transports/serial.py `_drive_modem_lines`."""
+(the host reads them as CTS and as DSR and CD): emulator/hosting/transports/serial.py `_drive_modem_lines`."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import pytest
 
 from emulator.device import LineSettings, ModemLines
-from emulator.transports.serial import SerialTransport
+from emulator.hosting.transports.serial import SerialTransport
 
 PLAIN = LineSettings(9600, 8, "none", 1, False, False)
 RTSCTS = LineSettings(9600, 8, "none", 1, True, False)

@@ -15,12 +15,12 @@ import pytest
 import serial
 
 from emulator.device import HostLine, LineSettings
-from emulator.line_errors import UNSEEN_HOST
-from emulator.profile import ProfileError
-from emulator.rig import load_rig, rig_from_profiles
-from emulator.transports.pty import PortError
-from emulator.transports.serial import SerialHost
-from emulator.transports.serial_port import open_failure, open_port, port_settings, refused_settings
+from emulator.hosting.line_errors import UNSEEN_HOST
+from emulator.hosting.rig import load_rig, rig_from_profiles
+from emulator.hosting.transports.pty import PortError
+from emulator.hosting.transports.serial import SerialHost
+from emulator.hosting.transports.serial_port import open_failure, open_port, port_settings, refused_settings
+from emulator.profiles.profile import ProfileError
 from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)
 
 LINE = LineSettings(9600, 8, "none", 1, False, False)
@@ -120,7 +120,7 @@ def test_not_a_serial_port(tmp_path: Path) -> None:
 
 
 def test_settings_the_port_refuses(pty_slave: str) -> None:
-    """A driver that fails on the settings (emulator/transports/serial.py also reads back what a
+    """A driver that fails on the settings (emulator/hosting/transports/serial.py also reads back what a
     port took: tests/unit/test_serial_transport.py)."""
     seven_even = LineSettings(9600, 7, "even", 1, False, False)
     refused = termios.error(22, "Invalid argument")

@@ -17,17 +17,17 @@ from pathlib import Path
 import pytest
 import serial
 
-from emulator.clock import ManualClock
 from emulator.device import FRAMING_ERROR, PARITY_ERROR, HostLine, HostServices, LineSettings, ModemLines
+from emulator.hosting.clock import ManualClock
+from emulator.hosting.line_errors import UNSEEN_HOST
+from emulator.hosting.runner import DeviceRunner
+from emulator.hosting.trafficlog import TrafficLog
+from emulator.hosting.transports.pty import OUTPUT_LIMIT, PortError
+from emulator.hosting.transports.serial import REOPEN_S, SerialHost, SerialTransport
+from emulator.hosting.transports.serial_io import FdIo
 from emulator.line import FAST
-from emulator.line_errors import UNSEEN_HOST
-from emulator.profile import load_profile
-from emulator.registry import family
-from emulator.runner import DeviceRunner
-from emulator.trafficlog import TrafficLog
-from emulator.transports.pty import OUTPUT_LIMIT, PortError
-from emulator.transports.serial import REOPEN_S, SerialHost, SerialTransport
-from emulator.transports.serial_io import FdIo
+from emulator.profiles.profile import load_profile
+from emulator.profiles.registry import family
 from tests.support.memory_transport import MemoryTransport
 from tests.support.nullmodem import NullModem
 

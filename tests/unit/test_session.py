@@ -1,5 +1,5 @@
-"""Session files (emulator/session.py) and the pairing of requests with replies
-(emulator/session_decode.py), on synthetic records."""
+"""Session files (emulator/tools/session.py) and the pairing of requests with replies
+(emulator/tools/session_decode.py), on synthetic records."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from emulator.device import HostLine, LineSettings
-from emulator.session import (
+from emulator.tools.session import (
     RX,
     TX,
     Chunk,
@@ -23,7 +23,7 @@ from emulator.session import (
     load_session,
     save_session,
 )
-from emulator.session_decode import Exchange
+from emulator.tools.session_decode import Exchange
 from protocols.mp285 import Move, encode_position
 
 LINE = LineSettings(baud=9600, data_bits=8, parity="none", stop_bits=1, rtscts=False, xonxoff=False)

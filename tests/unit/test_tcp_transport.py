@@ -1,5 +1,5 @@
 """The raw TCP transport on loopback: one host at a time, hang-ups of every kind, flow control both
-ways as on a PTY (emulator/transports/base.py), and a clean refusal of an address in use."""
+ways as on a PTY (emulator/hosting/transports/base.py), and a clean refusal of an address in use."""
 
 from __future__ import annotations
 
@@ -11,10 +11,10 @@ import socket
 import pytest
 
 from emulator.device import HostLine
-from emulator.ratelimit import LOG_INTERVAL_S, LogLimiter
-from emulator.transports.pty import OUTPUT_LIMIT, PortError
-from emulator.transports.rfc2217 import Rfc2217Transport
-from emulator.transports.tcp import (
+from emulator.hosting.ratelimit import LOG_INTERVAL_S, LogLimiter
+from emulator.hosting.transports.pty import OUTPUT_LIMIT, PortError
+from emulator.hosting.transports.rfc2217 import Rfc2217Transport
+from emulator.hosting.transports.tcp import (
     KEEPALIVE_COUNT,
     KEEPALIVE_IDLE_S,
     KEEPALIVE_INTERVAL_S,

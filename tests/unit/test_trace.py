@@ -1,4 +1,5 @@
-"""`stage-emu trace`: reading a traffic log back as exchanges (emulator/trace.py, emulator/cli_trace.py)."""
+"""`stage-emu trace`: reading a traffic log back as exchanges (emulator/tools/trace.py,
+emulator/cli/trace.py)."""
 
 from __future__ import annotations
 
@@ -14,8 +15,8 @@ import pytest
 from click.testing import CliRunner
 
 from emulator.cli import main
-from emulator.readers import ReadError
-from emulator.trace import (
+from emulator.tools.readers import ReadError
+from emulator.tools.trace import (
     Record,
     TraceNotes,
     TraceOptions,

@@ -13,13 +13,13 @@ from typing import Any
 
 import pytest
 
-from emulator.clock import ManualClock
 from emulator.device import HostServices, LineSettings
+from emulator.hosting.clock import ManualClock
+from emulator.hosting.runner import DeviceRunner
+from emulator.hosting.trafficlog import SNIFF_BYTES, NotATrafficLog, TrafficLog
 from emulator.line import FAST, REALISTIC, char_time
-from emulator.profile import load_profile
-from emulator.registry import family
-from emulator.runner import DeviceRunner
-from emulator.trafficlog import SNIFF_BYTES, NotATrafficLog, TrafficLog
+from emulator.profiles.profile import load_profile
+from emulator.profiles.registry import family
 from protocols import mp285
 from tests.support.memory_transport import MemoryTransport
 from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)

@@ -1,4 +1,4 @@
-"""Modem lines on the `stageemu://` URL (emulator/urlhandler/lines.py, emulator/transports/modem.py):
+"""Modem lines on the `stageemu://` URL (emulator/urlhandler/lines.py, emulator/hosting/transports/modem.py):
 each family's declared lines, the MP-285A's RTS/CTS flow control in both directions, and a host
 whose UART waits for a CTS the MS2000 never asserts. Virtual time unless a test says otherwise, so
 every wait is exact and costs no wall time."""
@@ -12,8 +12,8 @@ import pytest
 import serial
 
 import emulator.urlhandler  # noqa: F401  (registers stageemu://)
-from emulator.port import INPUT_BACKLOG
-from emulator.transports.inprocess import RECEIVE_BUFFER
+from emulator.hosting.port import INPUT_BACKLOG
+from emulator.hosting.transports.inprocess import RECEIVE_BUFFER
 from tests.conformance.mp285.wire import DUMP_B
 
 VERSION = b":A Version: USB-9.2k \r\n"

@@ -14,14 +14,14 @@ import pytest
 import serial
 
 import emulator.urlhandler  # noqa: F401  (registers stageemu://)
-from emulator.clock import ManualClock
 from emulator.device import HostServices, LineSettings
+from emulator.hosting.clock import ManualClock
+from emulator.hosting.port import INPUT_BACKLOG
+from emulator.hosting.runner import DeviceRunner
+from emulator.hosting.transports.pty import READ_CHUNK
 from emulator.line import FAST
-from emulator.port import INPUT_BACKLOG
-from emulator.profile import load_profile
-from emulator.registry import family
-from emulator.runner import DeviceRunner
-from emulator.transports.pty import READ_CHUNK
+from emulator.profiles.profile import load_profile
+from emulator.profiles.registry import family
 from tests.support.memory_transport import MemoryTransport
 
 CHAR_9600 = 10 / 9600

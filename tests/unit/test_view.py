@@ -1,4 +1,4 @@
-"""`stage-emu view`: rows from `list`, snapshots, events and traffic records (emulator/view.py),
+"""`stage-emu view`: rows from `list`, snapshots, events and traffic records (emulator/tools/view.py),
 their rendering, and the command's one-line failure without a daemon."""
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ from click.testing import CliRunner
 from rich.console import Console
 
 from emulator.cli import main
-from emulator.cli_view import render
+from emulator.cli.view import render
 from emulator.device import HostLine
-from emulator.trafficlog import traffic_entry
-from emulator.view import EVENTS_KEPT, EXCHANGES_KEPT, ExchangeRow, ViewState, event_line
+from emulator.hosting.trafficlog import traffic_entry
+from emulator.tools.view import EVENTS_KEPT, EXCHANGES_KEPT, ExchangeRow, ViewState, event_line
 
 LISTING: list[dict[str, Any]] = [
     {

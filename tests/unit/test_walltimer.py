@@ -1,4 +1,4 @@
-"""The runner's wake-up timer (emulator/walltimer.py): a timerfd on Linux, the loop's millisecond
+"""The runner's wake-up timer (emulator/hosting/walltimer.py): a timerfd on Linux, the loop's millisecond
 timer elsewhere; and the runner re-arming it when the clock's scale changes."""
 
 from __future__ import annotations
@@ -8,13 +8,13 @@ import time
 
 import pytest
 
-from emulator import walltimer
-from emulator.clock import ScaledClock
 from emulator.device import HostServices
-from emulator.profile import load_profile
-from emulator.registry import family
-from emulator.runner import DeviceRunner
-from emulator.walltimer import LOOP_TIMER_EARLY_S, TIMERFD_EARLY_S, LoopTimer, TimerFd, make_timer
+from emulator.hosting import walltimer
+from emulator.hosting.clock import ScaledClock
+from emulator.hosting.runner import DeviceRunner
+from emulator.hosting.walltimer import LOOP_TIMER_EARLY_S, TIMERFD_EARLY_S, LoopTimer, TimerFd, make_timer
+from emulator.profiles.profile import load_profile
+from emulator.profiles.registry import family
 from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)
 
 #: wall seconds to a deadline 10 device seconds away at scale 1 (the re-arming test's old arming)

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from emulator import registry
 from emulator.devices.mp285.model import Mp285Device
 from emulator.devices.mp285.schema import Mp285Config
+from emulator.profiles import registry
 
 FAMILY = registry.register(
     registry.Family(

@@ -45,7 +45,7 @@ from emulator.devices.mp285.receiver import Receiver
 from emulator.devices.mp285.schema import Mp285Config, speed_limits
 from emulator.devices.mp285.states import FRAME_STATES, LISTENING, ROE_REFUSED, State
 from emulator.devices.mp285.status import Display, Status
-from emulator.profile import Profile
+from emulator.profiles.profile import Profile
 from protocols import mp285 as proto
 from protocols.mp285 import ErrorCode, Item, StatusBlock, Vector, Velocity
 

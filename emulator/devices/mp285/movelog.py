@@ -1,4 +1,4 @@
-"""`move` records (emulator/trafficlog.py) for the MP-285: the path of each run as knots
+"""`move` records (emulator/hosting/trafficlog.py) for the MP-285: the path of each run as knots
 `[device time, µm]` per axis, in reported coordinates (physical minus origin), so a reader of the
 traffic log (`stage-emu plot`) knows where the stage was. Built only while a traffic log is kept.
 

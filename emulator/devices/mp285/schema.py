@@ -13,8 +13,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from emulator.profile import Config, Line, line_section
-from emulator.schema import (
+from emulator.profiles.profile import Config, Line, line_section
+from emulator.profiles.schema import (
     Bool,
     Choice,
     Derived,

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-from emulator import registry
 from emulator.devices.ms2000.model import Ms2000Device
 from emulator.devices.ms2000.modules import channels_of
 from emulator.devices.ms2000.schema import SCHEMA
+from emulator.profiles import registry
 
 FAMILY = registry.register(
     registry.Family(

@@ -18,7 +18,7 @@ from collections.abc import Callable
 from typing import Any
 
 from emulator.device import HostServices, Store
-from emulator.nvstore import StorageError
+from emulator.storage.nvstore import StorageError
 
 FORMAT = 1
 

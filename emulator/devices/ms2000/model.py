@@ -54,7 +54,7 @@ from emulator.devices.ms2000.serial_line import SerialLine, garble
 from emulator.devices.ms2000.settings import CardAuto
 from emulator.devices.ms2000.surface import ControlSurface
 from emulator.devices.ms2000.ttl import BASE_OUT_MODES, Ttl
-from emulator.profile import Profile
+from emulator.profiles.profile import Profile
 from protocols import ms2000 as proto
 from protocols.ms2000 import Shape
 from protocols.rounding import round_half_away

@@ -1,4 +1,4 @@
-"""`move` records (emulator/trafficlog.py): an axis's planned path each time it changes, so a reader
+"""`move` records (emulator/hosting/trafficlog.py): an axis's planned path each time it changes, so a reader
 of the traffic log (`stage-emu plot`) knows where the stage was without re-parsing host commands.
 
 Built only while a traffic log is kept (`Ms2000Device.path_changed`). The path is the axis's

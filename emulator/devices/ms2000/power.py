@@ -27,8 +27,8 @@ from emulator.devices.ms2000.settings import (
     from_plain,
     to_plain,
 )
-from emulator.nvstore import StorageError
-from emulator.schema import finite_number
+from emulator.profiles.schema import finite_number
+from emulator.storage.nvstore import StorageError
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:

@@ -36,8 +36,8 @@ from emulator.devices.ms2000.sections import (
     Ms2000Knobs,
     baud_of,
 )
-from emulator.profile import Config, Line, line_section
-from emulator.schema import (
+from emulator.profiles.profile import Config, Line, line_section
+from emulator.profiles.schema import (
     Derived,
     Float,
     Int,

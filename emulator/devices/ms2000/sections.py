@@ -10,7 +10,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from emulator.schema import (
+from emulator.profiles.schema import (
     Bool,
     Choice,
     Derived,

@@ -16,7 +16,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any, TypeVar
 
-from emulator.schema import finite_number
+from emulator.profiles.schema import finite_number
 
 T = TypeVar("T")
 

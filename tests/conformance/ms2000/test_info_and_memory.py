@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 
-from emulator.profile import load_profile
+from emulator.profiles.profile import load_profile
 from emulator.urlhandler.control import HostedControl
 from emulator.urlhandler.hosted import serve
 from emulator.urlhandler.url import VIRTUAL, UrlOptions

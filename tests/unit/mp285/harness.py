@@ -7,8 +7,8 @@ from typing import Any
 
 from emulator.device import HostLine, HostServices
 from emulator.devices.mp285.model import Mp285Device
-from emulator.profile import load_profile
-from emulator.registry import family
+from emulator.profiles.profile import load_profile
+from emulator.profiles.registry import family
 from tests.support.model_harness import ModelHarness
 
 CHAR = 10 / 9600  # one 8N1 character at 9600 baud

@@ -7,8 +7,8 @@ import json
 import pytest
 
 from emulator.device import ControlError, HostServices, LineSettings
-from emulator.profile import load_profile
-from emulator.registry import family
+from emulator.profiles.profile import load_profile
+from emulator.profiles.registry import family
 from protocols.mp285 import Download, Execute, Move, Vector, encode_position
 from tests.unit.mp285.harness import CHAR, Bench, hexs
 

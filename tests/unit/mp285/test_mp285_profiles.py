@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from emulator.profile import ProfileError, load_profile
-from emulator.registry import family
+from emulator.profiles.profile import ProfileError, load_profile
+from emulator.profiles.registry import family
 
 BUNDLED = ("mp285", "mp285-mt800", "mp285a", "mp285a-v302", "mp285a-qr", "mp285a-rs232")
 

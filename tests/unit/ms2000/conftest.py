@@ -11,7 +11,7 @@ import pytest
 
 from emulator.device import HostServices
 from emulator.devices.ms2000.model import Ms2000Device
-from emulator.profile import Profile, load_profile
+from emulator.profiles.profile import Profile, load_profile
 from tests.support.model_harness import ModelHarness
 
 

@@ -13,7 +13,7 @@ import pytest
 
 from emulator.device import HostServices, StoreReport
 from emulator.devices.ms2000.power import POSITION_SAVE_DELAY_S
-from emulator.nvstore import StorageError
+from emulator.storage.nvstore import StorageError
 from tests.unit.ms2000.conftest import Harness
 
 ACK = b":A\r\n"

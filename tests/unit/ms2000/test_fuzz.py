@@ -9,7 +9,7 @@ import re
 from hypothesis import given
 from hypothesis import strategies as st
 
-from emulator.profile import load_profile
+from emulator.profiles.profile import load_profile
 from protocols import ms2000 as p
 from tests.support.fuzz import fuzz_settings
 from tests.unit.ms2000.conftest import Harness

@@ -11,15 +11,15 @@ from typing import Any, ClassVar
 
 import pytest
 
-from emulator import registry
 from emulator.devices.ms2000.calls import Call, Param, Reply, run_settings, within
 from emulator.devices.ms2000.modules import MODULES, Handler, Module
 from emulator.devices.ms2000.modules.capabilities import ControlChannel, LcdSegment, Playback
 from emulator.devices.ms2000.modules.events import ArrayArrival, Reset, RmX, on
 from emulator.devices.ms2000.modules.host import ModuleHost
 from emulator.devices.ms2000.schema import DEFAULT_MODULES, build_schema
-from emulator.profile import ProfileError, load_profile
-from emulator.schema import Field, Int
+from emulator.profiles import registry
+from emulator.profiles.profile import ProfileError, load_profile
+from emulator.profiles.schema import Field, Int
 from protocols.ms2000 import Fmt, Shape
 from tests.unit.ms2000.conftest import Harness
 

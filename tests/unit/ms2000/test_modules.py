@@ -8,8 +8,8 @@ import pytest
 from emulator.devices.ms2000.modules import MODULES, Module
 from emulator.devices.ms2000.modules.events import MoveComplete, on
 from emulator.devices.ms2000.schema import SCHEMA
-from emulator.profile import ProfileError
-from emulator.schema import Section
+from emulator.profiles.profile import ProfileError
+from emulator.profiles.schema import Section
 from tests.unit.ms2000.conftest import Harness
 
 ACK = b":A\r\n"

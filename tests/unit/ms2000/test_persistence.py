@@ -12,13 +12,13 @@ from pathlib import Path
 
 import pytest
 
-from emulator import nvstore
-from emulator.clock import ManualClock
 from emulator.device import ControlError, HostServices, LineSettings
 from emulator.devices.ms2000.model import Ms2000Device
 from emulator.devices.ms2000.power import POSITION_SAVE_DELAY_S
-from emulator.nvstore import NvStore
-from emulator.runner import DeviceRunner
+from emulator.hosting.clock import ManualClock
+from emulator.hosting.runner import DeviceRunner
+from emulator.storage import nvstore
+from emulator.storage.nvstore import NvStore
 from tests.support.memory_transport import MemoryTransport
 from tests.unit.ms2000.conftest import Harness
 

@@ -8,12 +8,12 @@ import logging
 
 import pytest
 
-from emulator.clock import ManualClock
 from emulator.device import HostServices, LineSettings
 from emulator.devices.ms2000.model import Ms2000Device
+from emulator.hosting.clock import ManualClock
+from emulator.hosting.runner import DeviceRunner
 from emulator.line import REALISTIC, char_time
-from emulator.profile import load_profile
-from emulator.runner import DeviceRunner
+from emulator.profiles.profile import load_profile
 from tests.support.memory_transport import MemoryTransport
 
 CHAR = char_time(9600)

@@ -8,7 +8,7 @@ import pytest
 from emulator.device import ControlError
 from emulator.devices.ms2000.modules.tracer import analog_volts
 from emulator.devices.ms2000.schema import SCHEMA
-from emulator.schema import Section
+from emulator.profiles.schema import Section
 from tests.unit.ms2000.conftest import Harness
 
 ACK = b":A\r\n"

@@ -8,14 +8,14 @@ from collections.abc import Iterator
 
 import pytest
 
-from emulator import registry
 from emulator.device import ControlError
 from emulator.devices.ms2000.calls import Call, Reply
 from emulator.devices.ms2000.modules import MODULES, Handler, Module
 from emulator.devices.ms2000.modules.tracking import Tracking
 from emulator.devices.ms2000.modules.tracking_signal import errors
 from emulator.devices.ms2000.schema import build_schema
-from emulator.profile import load_profile
+from emulator.profiles import registry
+from emulator.profiles.profile import load_profile
 from tests.unit.ms2000.conftest import Harness
 
 ACK = b":A\r\n"

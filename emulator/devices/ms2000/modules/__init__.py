@@ -43,7 +43,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 from emulator.device import MAIN
 from emulator.devices.ms2000.calls import Handler
 from emulator.devices.ms2000.modules.events import Event, subscriptions
-from emulator.schema import Field
+from emulator.profiles.schema import Field
 from protocols.ms2000 import Shape
 
 if TYPE_CHECKING:

@@ -35,7 +35,7 @@ from emulator.devices.ms2000.modules.capabilities import (
 )
 from emulator.devices.ms2000.modules.events import ArrayArrival, Halt, MoveComplete, Reset, RmX, on
 from emulator.devices.ms2000.modules.scan_roles import FAST, SCAN_MODULE, SERPENTINE, SLOW, shared_roles
-from emulator.schema import Bool, Field
+from emulator.profiles.schema import Bool, Field
 from protocols.ms2000 import Fmt, Kind
 from protocols.rounding import round_half_away
 

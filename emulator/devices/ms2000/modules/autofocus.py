@@ -18,7 +18,7 @@ from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import TYPE_CHECKING, Any
 
-from emulator.device import ControlError
+from emulator.device import AF_SAMPLE, ControlError
 from emulator.devices.ms2000.buttons import EXTRA, NORMAL
 from emulator.devices.ms2000.calls import Call, CommandError, Pending, Reply
 from emulator.devices.ms2000.modules import Handler, Module, register
@@ -50,8 +50,7 @@ from emulator.devices.ms2000.modules.events import (
     Reset,
     on,
 )
-from emulator.schema import Bool, Field
-from emulator.trafficlog import AF_SAMPLE
+from emulator.profiles.schema import Bool, Field
 from protocols.ms2000 import ErrorCode, Kind, Shape, error_reply
 from protocols.rounding import round_half_away
 

@@ -30,6 +30,7 @@ from collections.abc import Callable, Mapping
 from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, ClassVar
 
+from emulator.device import CRISP_SAMPLE
 from emulator.devices.ms2000.buttons import NORMAL
 from emulator.devices.ms2000.modules import Handler, Module, register
 from emulator.devices.ms2000.modules import crisp_states as st
@@ -51,8 +52,7 @@ from emulator.devices.ms2000.modules.crisp_settings import (
     CrispSettings,
 )
 from emulator.devices.ms2000.modules.events import Halt, MoveComplete, Out0ModeChanged, Reset, on
-from emulator.schema import Choice, Field, Float
-from emulator.trafficlog import CRISP_SAMPLE
+from emulator.profiles.schema import Choice, Field, Float
 from protocols.ms2000 import Shape
 
 if TYPE_CHECKING:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 from emulator.device import ControlError
-from emulator.schema import finite_number
+from emulator.profiles.schema import finite_number
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:

@@ -13,7 +13,7 @@ from dataclasses import asdict, dataclass, fields
 from typing import Any
 
 from emulator.devices.ms2000.calls import CommandError, Param, within
-from emulator.schema import finite_number
+from emulator.profiles.schema import finite_number
 from protocols.ms2000 import ErrorCode, Fmt
 
 #: objective NA 0.65 gives the documented cal range 0.005 mm and in-focus window 0.0001 mm

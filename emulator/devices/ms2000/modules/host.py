@@ -102,7 +102,7 @@ class ModuleHost(Protocol):
     @property
     def explain(self) -> bool:
         """A traffic log is kept: only then does a module build its log-only events (per-update
-        samples, emulator/trafficlog.py `LOG_ONLY`), so without a log they cost nothing."""
+        samples, emulator/hosting/trafficlog.py `LOG_ONLY`), so without a log they cost nothing."""
 
     # ---- motion -------------------------------------------------------------------------------
 

@@ -15,7 +15,7 @@ from emulator.devices.ms2000.calls import Call, Param, Reply, run_settings, with
 from emulator.devices.ms2000.modules import Handler, Module, register
 from emulator.devices.ms2000.modules.capabilities import ControlChannel, LcdSegment, TtlOut
 from emulator.devices.ms2000.modules.events import TtlTrailingValue, on
-from emulator.schema import Choice, Field
+from emulator.profiles.schema import Choice, Field
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:

@@ -25,7 +25,7 @@ from emulator.devices.ms2000.calls import Call, CommandError, Reply, first_error
 from emulator.devices.ms2000.modules import Handler, Module, register
 from emulator.devices.ms2000.modules.capabilities import ControlChannel, LcdSegment, PanelButtons
 from emulator.devices.ms2000.modules.events import Reset, Zeroing, on
-from emulator.schema import finite_number
+from emulator.profiles.schema import finite_number
 from protocols.ms2000 import ErrorCode, Kind, Shape
 from protocols.rounding import round_half_away
 

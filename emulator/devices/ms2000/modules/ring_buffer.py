@@ -35,7 +35,7 @@ from emulator.devices.ms2000.modules.capabilities import (
     TtlIn,
 )
 from emulator.devices.ms2000.modules.events import Halt, Reset, RmX, on
-from emulator.schema import Bool, Choice, Field
+from emulator.profiles.schema import Bool, Choice, Field
 from protocols.ms2000 import ErrorCode, Kind
 
 if TYPE_CHECKING:

@@ -28,7 +28,7 @@ from emulator.devices.ms2000.modules.enc_int import COUNTING_MODE
 from emulator.devices.ms2000.modules.events import Halt, MoveComplete, Reset, on
 from emulator.devices.ms2000.modules.scan_plan import Leg, ScanArea, Sweep, plan
 from emulator.devices.ms2000.modules.scan_roles import FAST, SERPENTINE, SLOW, shared_roles
-from emulator.schema import Choice, Field
+from emulator.profiles.schema import Choice, Field
 from protocols.ms2000 import ErrorCode, Fmt, Kind
 from protocols.rounding import round_half_away
 

@@ -33,7 +33,7 @@ from emulator.devices.ms2000.modules.sequencer_program import (
     Program,
     parse,
 )
-from emulator.schema import Choice, Field
+from emulator.profiles.schema import Choice, Field
 from protocols.ms2000 import ErrorCode, Item, Kind
 from protocols.rounding import round_half_away
 

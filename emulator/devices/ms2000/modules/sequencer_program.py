@@ -15,7 +15,7 @@ from enum import Enum
 from typing import Any
 
 from emulator.device import ControlError
-from emulator.schema import finite_number
+from emulator.profiles.schema import finite_number
 
 #: MS-SEQ-1 [choice counts]: BLK1…BLK8, TTL0…TTL3, AVO0…AVO1
 BLOCK_COUNT = 8

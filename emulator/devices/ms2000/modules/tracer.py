@@ -18,7 +18,7 @@ from typing import Any
 
 from emulator.devices.ms2000.modules import Module, register
 from emulator.devices.ms2000.modules.capabilities import ControlChannel
-from emulator.schema import Choice, Field
+from emulator.profiles.schema import Choice, Field
 
 #: MS-TRACER-2: the only rate Tracer Console runs at
 TRACER_BAUD = 115200

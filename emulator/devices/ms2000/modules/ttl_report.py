@@ -21,7 +21,7 @@ from typing import TYPE_CHECKING, Any
 from emulator.devices.ms2000.modules import Module, register
 from emulator.devices.ms2000.modules.capabilities import ControlChannel, TtlIn
 from emulator.devices.ms2000.modules.events import Reset, on
-from emulator.schema import Choice, Field
+from emulator.profiles.schema import Choice, Field
 from protocols.ms2000 import frame as text_frame
 from protocols.ms2000 import ttl_report as codec
 from protocols.rounding import round_half_away

@@ -1,0 +1,1 @@
+"""Running models on ports: the daemon, the runner, the transports, the control channel."""

@@ -1,0 +1,1 @@
+"""Profiles: typed fields, YAML sources, validated profiles, the family registry."""

@@ -1,0 +1,1 @@
+"""What the emulator keeps on disk: a device's flash and the daemon's runtime directory."""

@@ -1,0 +1,1 @@
+"""Offline traffic tools: trace, plot, proxy and replay, view, capture."""
