@@ -21,7 +21,6 @@ being executed, or the command that started a run), and runs and rests become `m
 from __future__ import annotations
 
 import dataclasses
-import enum
 import math
 from typing import Any
 
@@ -43,7 +42,7 @@ from emulator.devices.mp285.motion import Halt, Program, Run, Stage, Xyz
 from emulator.devices.mp285.movelog import rest_record, run_record
 from emulator.devices.mp285.receiver import Receiver
 from emulator.devices.mp285.schema import Mp285Config, speed_limits
-from emulator.devices.mp285.states import FRAME_STATES, LISTENING, ROE_REFUSED, State
+from emulator.devices.mp285.states import DEAF_REASONS, FRAME_STATES, LISTENING, ROE_REFUSED, Event, State
 from emulator.devices.mp285.status import Display, Status
 from emulator.profiles.profile import Profile
 from protocols import mp285 as proto
@@ -57,23 +56,6 @@ INTERRUPTED_REPLIES = {
 }
 #: control-channel inputs (`ctl input`), see docs/mp285.md
 INPUTS = ("crash", "power_cycle", "roe", "set_line")
-#: why a byte is lost in a state that does not listen (traffic log)
-DEAF_REASONS = {
-    State.DEAF: "deaf after reset (MP-56)",
-    State.POWERING_ON: "powering on (MP-76)",
-    State.LOCKED: "locked up (MP-80)",
-}
-
-
-class Event(enum.IntEnum):
-    """Internal events; due at the same instant, they run in this order."""
-
-    BUSY_END = 0  # MP-7
-    FINAL = 1  # MP-47
-    LOCKUP = 2  # MP-80
-    POWER_ON = 3  # MP-76
-    RX = 4  # MP-6
-    TX = 5  # MP-6
 
 
 class Mp285Device(Device):

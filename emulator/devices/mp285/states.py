@@ -50,3 +50,21 @@ FRAME_STATES = {ParseState.COLLECTING: State.COLLECTING, ParseState.DISCARDING: 
 LISTENING = (State.IDLE, State.MOVING, State.PAUSED)
 #: where the ROE does nothing (MP-79: it acts while the controller is idle)
 ROE_REFUSED = (State.MOVING, State.STOPPING, State.POWERING_ON, State.CRASHED, State.LOCKED)
+
+#: why a byte is lost in a state that does not listen (traffic log)
+DEAF_REASONS = {
+    State.DEAF: "deaf after reset (MP-56)",
+    State.POWERING_ON: "powering on (MP-76)",
+    State.LOCKED: "locked up (MP-80)",
+}
+
+
+class Event(enum.IntEnum):
+    """Internal events; due at the same instant, they run in this order."""
+
+    BUSY_END = 0  # MP-7
+    FINAL = 1  # MP-47
+    LOCKUP = 2  # MP-80
+    POWER_ON = 3  # MP-76
+    RX = 4  # MP-6
+    TX = 5  # MP-6
