@@ -21,7 +21,7 @@ Host obligations (see emulator/hosting/runner.py):
 
 Model obligations:
 - `Emission.due` is the device instant at which the bytes are handed to the device's transmitter;
-  the line layer (emulator/line.py) then paces them at the character rate.
+  a `Pacer` (emulator/wire_time.py) then paces them at the character rate.
 - Bad input never raises: it produces whatever the real device does with it.
 - While `explain` is set (the host keeps a traffic log, or someone watches the traffic) it says what
   it did with the bytes: an `RxNote` per unit of input (a command, a garbled character, bytes lost or
@@ -197,8 +197,8 @@ StoreOpener = Callable[[str, StoreReport], Store]
 
 
 @dataclass(frozen=True)
-class HostServices:
-    """What the host offers a model besides bytes and time."""
+class DeviceServices:
+    """What the hosting layer offers a model besides bytes and time (its stores)."""
 
     #: directory for non-volatile device memory, written synchronously by `open_store`'s default
     #: stores; None = nothing persists beyond the model (its store is in memory)
@@ -231,7 +231,7 @@ class Device(ABC):
     #: `ctl list`, with a pushed `storage_error` event) is how a host learns its saves are lost
     storage_error: str | None = None
 
-    def __init__(self, name: str, profile: Profile, now: float, services: HostServices) -> None:
+    def __init__(self, name: str, profile: Profile, now: float, services: DeviceServices) -> None:
         self.name = name
         self.profile = profile
         self.services = services

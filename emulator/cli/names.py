@@ -26,7 +26,7 @@ class FamilyNames:
 
 def names_by_family(kind: str) -> list[FamilyNames]:
     """Each family's names of `kind`, from a model of each bundled profile."""
-    from emulator.device import HostServices
+    from emulator.device import DeviceServices
     from emulator.profiles import registry
     from emulator.profiles.profile import ProfileError, bundled_names, load_profile
 
@@ -39,7 +39,7 @@ def names_by_family(kind: str) -> list[FamilyNames]:
         family = registry.family(profile.family)
         if family is None:
             continue
-        model = family.factory(name, profile, 0.0, HostServices())
+        model = family.factory(name, profile, 0.0, DeviceServices())
         per_profile.setdefault(profile.family, {})[name] = set(model.control_names()[kind])
     groups = []
     for family_name, profiles in sorted(per_profile.items()):

@@ -15,10 +15,10 @@ from emulator.hosting.control import RequestError
 from emulator.hosting.daemon import Daemon, DaemonOptions
 from emulator.hosting.rig import load_rig, rig_from_profiles
 from emulator.hosting.transports.pty import PortError
-from emulator.line import TIMINGS
 from emulator.profiles.profile import bundled_dir
 from emulator.profiles.yamlsource import SourceError
 from emulator.storage.runtime import SetupError
+from emulator.wire_time import TIMINGS
 
 DEFAULT_RIG = "rig.yaml"
 

@@ -16,7 +16,6 @@ import click
 from emulator.cli.common import fail
 from emulator.device import LineSettings
 from emulator.hosting.transports.pty import PortError
-from emulator.line import REALISTIC, TIMINGS
 from emulator.profiles.profile import ProfileError, load_profile
 from emulator.storage.runtime import SetupError, runtime_dir
 from emulator.tools.progress import Progress
@@ -32,6 +31,7 @@ from emulator.tools.replay import (
     replay,
 )
 from emulator.tools.session import FAMILIES, Session, SessionError, load_session, save_session
+from emulator.wire_time import REALISTIC, TIMINGS
 
 #: where `--save-test NAME` puts a session: the conformance suite replays every file there
 TESTS_DIR = Path("tests/conformance")

@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
-from emulator.device import Device, HostServices, Store, StoreOpener, StoreReport
+from emulator.device import Device, DeviceServices, Store, StoreOpener, StoreReport
 from emulator.hosting.clock import ScaledClock
 from emulator.hosting.control import ControlServer
 from emulator.hosting.lag import WorkBudget
@@ -38,7 +38,6 @@ from emulator.hosting.rig import DeviceSpec, Rig
 from emulator.hosting.runner import DeviceRunner
 from emulator.hosting.trafficlog import TrafficLog
 from emulator.hosting.transports import create as create_transport
-from emulator.line import REALISTIC
 from emulator.profiles import registry
 from emulator.storage.nvstore import FlashWriter, ReportingStore, StateInUse, StorageError
 from emulator.storage.runtime import (
@@ -54,6 +53,7 @@ from emulator.storage.runtime import (
     runtime_dir,
     write_private_atomic,
 )
+from emulator.wire_time import REALISTIC
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT)
 #: the same loop error is logged at most once per this many seconds (e.g. out of descriptors)
@@ -157,7 +157,7 @@ class Daemon:
         # The models first: each claims its store file, so a refusal comes before any socket or port.
         for spec in self.rig.devices:
             self.runners[spec.name] = DeviceRunner(
-                _factory(spec, HostServices(stores=self._stores_for(spec.name))),
+                _factory(spec, DeviceServices(stores=self._stores_for(spec.name))),
                 self.clock,
                 loop=loop,
                 traffic=self._traffic,
@@ -267,7 +267,7 @@ class Daemon:
             _cleanup_step("releasing the owner record", self._ownership.release)
 
 
-def _factory(spec: DeviceSpec, services: HostServices) -> Any:
+def _factory(spec: DeviceSpec, services: DeviceServices) -> Any:
     family = registry.family(spec.profile.family)
     assert family is not None  # the profile loader checked it
 

@@ -23,7 +23,7 @@ from collections.abc import Callable
 
 from emulator.device import GARBLED, Device, Emission, RxNote
 from emulator.hosting.line_errors import UNSEEN_HOST
-from emulator.hosting.port import Channel
+from emulator.hosting.port import Port
 from emulator.hosting.trafficlog import DeviceTraffic, TrafficSink
 
 
@@ -51,7 +51,7 @@ class Explainer(DeviceTraffic):
         self.lost_rx(t, port, b"", f"the host hung up: {count} bytes left in the port discarded")
         self.flush()
 
-    def cleared(self, t: float, ch: Channel, why: str, input_too: bool) -> None:
+    def cleared(self, t: float, ch: Port, why: str, input_too: bool) -> None:
         """The port's wire is about to be cleared: what is on it is lost (the host's bytes too, with
         `input_too`)."""
         self.discard(t, ch.name, f"not sent: {why}")

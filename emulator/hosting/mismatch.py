@@ -8,13 +8,13 @@ from __future__ import annotations
 import logging
 
 from emulator.device import Device, LineSettings
-from emulator.hosting.port import Channel
-from emulator.line import mismatches
+from emulator.hosting.port import Port
+from emulator.wire_time import mismatches
 
 log = logging.getLogger("stage_emu.runner")
 
 
-def check(ch: Channel, own: LineSettings) -> None:
+def check(ch: Port, own: LineSettings) -> None:
     """Compare the host's settings with the device's `own` (only when either changed) and keep
     a differing pair pending until a byte crosses (`report`)."""
     if ch.host is None or (ch.host, own) == ch.checked_for:
@@ -27,7 +27,7 @@ def check(ch: Channel, own: LineSettings) -> None:
     ch.pending_mismatch = key if key != ch.reported_mismatch else ()
 
 
-def report(ch: Channel, device: Device) -> None:
+def report(ch: Port, device: Device) -> None:
     """Log the pending mismatch: a byte crossed the line while the settings differ."""
     key, ch.pending_mismatch = ch.pending_mismatch, ()
     ch.reported_mismatch = key
@@ -43,7 +43,7 @@ def report(ch: Channel, device: Device) -> None:
     )
 
 
-def forget(ch: Channel) -> None:
+def forget(ch: Port) -> None:
     """A new host or a new device: nothing checked or warned about yet."""
     ch.reported_mismatch = ch.pending_mismatch = ()
     ch.checked_for = ()

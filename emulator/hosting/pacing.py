@@ -1,9 +1,9 @@
 """Pacing of a hosted device's ports: the character times of each port's two pacers
-(emulator/line.py), following the line settings of both ends, and the host input whose wire time
+(emulator/wire_time.py), following the line settings of both ends, and the host input whose wire time
 has ended, ready for the model.
 
-Owns: `Channel.to_host.per_char`, `Channel.from_host.per_char` and what they were computed from
-(`Channel.paced_for`), the line errors among each port's queued input (emulator/hosting/line_errors.py), and
+Owns: `Port.to_host.per_char`, `Port.from_host.per_char` and what they were computed from
+(`Port.paced_for`), the line errors among each port's queued input (emulator/hosting/line_errors.py), and
 the one reading of the device's own line settings per step: the pacers, a serial port that runs at
 those settings (`Transport.device_line_changed`) and the mismatch check (emulator/hosting/mismatch.py) all
 take it from `follow`.
@@ -21,8 +21,8 @@ from emulator.device import Device, LineSettings
 from emulator.hosting import mismatch
 from emulator.hosting.explain import Explainer
 from emulator.hosting.line_errors import LineErrors
-from emulator.hosting.port import Channel
-from emulator.line import REALISTIC, settings_char_time
+from emulator.hosting.port import Port
+from emulator.wire_time import REALISTIC, settings_char_time
 
 #: host input ready for the model: (device time, port, bytes, line error kind or None); a
 #: character received with a line error comes alone
@@ -32,7 +32,7 @@ Arrival = tuple[float, str, bytes, str | None]
 class Pacing:
     """The pacers of one runner's ports and the input they hold."""
 
-    def __init__(self, channels: dict[str, Channel]) -> None:
+    def __init__(self, channels: dict[str, Port]) -> None:
         self._channels = channels
         #: per port, the characters with line errors among its queued input (a serial port's)
         self._line_errors: dict[str, LineErrors] = {}
@@ -55,20 +55,20 @@ class Pacing:
         return changed
 
     @staticmethod
-    def _pace(ch: Channel, realistic: bool, own: LineSettings) -> None:
+    def _pace(ch: Port, realistic: bool, own: LineSettings) -> None:
         if ch.paced_for and ch.paced_for[1] != own and ch.transport is not None:
             ch.transport.device_line_changed()  # a serial port follows the device's settings
         ch.paced_for = (realistic, own, ch.host)
         ch.to_host.per_char = settings_char_time(own, own) if realistic else 0.0
         ch.from_host.per_char = settings_char_time(ch.host or own, own) if realistic else 0.0
 
-    def line_error(self, ch: Channel, byte: int, kind: str, now: float) -> None:
+    def line_error(self, ch: Port, byte: int, kind: str, now: float) -> None:
         """A character the port's UART received with a line error, after the bytes queued so far:
         it takes its wire time and its place in the input like any byte."""
         self._line_errors.setdefault(ch.name, LineErrors()).add(len(ch.from_host), kind)
         ch.from_host.push(now, bytes((byte,)))
 
-    def clear(self, ch: Channel) -> None:
+    def clear(self, ch: Port) -> None:
         """The port's input is gone (its wire was cleared): its line errors go with it."""
         ch.from_host.clear()
         self._line_errors.pop(ch.name, None)

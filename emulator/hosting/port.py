@@ -15,7 +15,7 @@ from typing import Any
 
 from emulator.device import HostLine
 from emulator.hosting.transports.base import Transport
-from emulator.line import REALISTIC, Pacer
+from emulator.wire_time import REALISTIC, Pacer
 
 log = logging.getLogger("stage_emu.runner")
 
@@ -69,7 +69,7 @@ class PortStats:
 
 
 @dataclass
-class Channel:
+class Port:
     """One port of the device: its transport, host state, pacing in both directions and faults."""
 
     name: str
@@ -104,7 +104,7 @@ class Channel:
         return room
 
 
-def resume_reading(channels: dict[str, Channel]) -> None:
+def resume_reading(channels: dict[str, Port]) -> None:
     """Let ports read again once their backlogs are down to half (not at every byte: a port then
     reads in batches, not one syscall per character). Only a port told there was no room has
     stopped (emulator/hosting/transports/base.py)."""
@@ -119,7 +119,7 @@ def resume_reading(channels: dict[str, Channel]) -> None:
             ch.transport.resume_reading()
 
 
-def count_drops(ch: Channel, device: str, dropped: int) -> None:
+def count_drops(ch: Port, device: str, dropped: int) -> None:
     """After a write to the port: `dropped` bytes of it the host's buffer did not take. Logged once
     per episode of dropping, and once more when the host takes output again."""
     stats = ch.stats

@@ -1,7 +1,7 @@
 """Port faults injected from the control channel (`fault`): their parameters, what each does to a
 port, and their expiry in device time.
 
-Owns: what a fault does to each port's `Faults` (`Channel.faults`, emulator/hosting/port.py), the checks on
+Owns: what a fault does to each port's `Faults` (`Port.faults`, emulator/hosting/port.py), the checks on
 a fault's parameters, and the schedule of expiries (`PortFaults.after`, due at `PortFaults.due`).
 Output faults act on each emission the runner routes (`outgoing`: not sent, dropped, corrupted,
 delayed); a hung port's input is heard by nobody (emulator/hosting/pacing.py drops it).
@@ -21,7 +21,7 @@ from typing import Any
 from emulator.device import Emission
 from emulator.hosting.clock import Clock
 from emulator.hosting.explain import Explainer
-from emulator.hosting.port import Channel, Faults
+from emulator.hosting.port import Faults, Port
 from emulator.profiles.schema import finite_number, show_number
 
 #: the value each corrupted byte is XORed with (`corrupt` fault)
@@ -64,7 +64,7 @@ def fault_params(fault: str, params: dict[str, Any]) -> dict[str, float]:
     return values
 
 
-def outgoing(ch: Channel, emission: Emission, tap: Explainer | None) -> tuple[bytes, float, int] | None:
+def outgoing(ch: Port, emission: Emission, tap: Explainer | None) -> tuple[bytes, float, int] | None:
     """What the port's faults make of an emission: None when it goes nowhere (recorded through
     `tap`; a drop fault is used up by it), else its bytes (the corrupt fault's next ones flipped),
     when they are handed to the wire (with the latency fault's delay) and how many were corrupted.
@@ -98,8 +98,8 @@ class PortFaults:
     def __init__(
         self,
         clock: Clock,
-        clear_wire: Callable[[Channel, str, bool], None],
-        detach: Callable[[Channel], None],
+        clear_wire: Callable[[Port, str, bool], None],
+        detach: Callable[[Port], None],
         changed: Callable[[], None],
     ) -> None:
         self._clock = clock
@@ -111,7 +111,7 @@ class PortFaults:
         #: the device time of the earliest action (infinity: none)
         self.due = math.inf
 
-    def inject(self, ch: Channel, fault: str, params: dict[str, Any]) -> None:
+    def inject(self, ch: Port, fault: str, params: dict[str, Any]) -> None:
         """Apply a fault to `ch`. Raises ValueError for bad input, leaving the port as it was."""
         values = fault_params(fault, params)
         seconds = values.get("seconds")
@@ -136,7 +136,7 @@ class PortFaults:
             ch.faults = Faults()
         self._changed()
 
-    def _disconnect(self, ch: Channel, seconds: float | None) -> None:
+    def _disconnect(self, ch: Port, seconds: float | None) -> None:
         if ch.transport is None or ch.faults.vanished:
             return
         ch.faults.vanished = True

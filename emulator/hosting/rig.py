@@ -31,7 +31,6 @@ from pathlib import Path as FsPath
 from typing import Any
 
 from emulator.hosting.transports import DEVICE_KINDS, KINDS, NETWORK_KINDS
-from emulator.line import TIMINGS
 from emulator.profiles.profile import DESCRIPTION, Profile, ProfileError, load_profile
 from emulator.profiles.registry import channels_of
 from emulator.profiles.schema import (
@@ -49,6 +48,7 @@ from emulator.profiles.schema import (
     setting,
 )
 from emulator.profiles.yamlsource import Problem, SourceError, in_file_order, read_source
+from emulator.wire_time import TIMINGS
 
 NAME_PATTERN = r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}"
 #: where a network port listens unless its `bind` says otherwise: this machine only

@@ -32,12 +32,12 @@ from emulator.hosting.clock import Clock
 from emulator.hosting.explain import Explainer, watch
 from emulator.hosting.lag import DeviceTime, WorkBudget
 from emulator.hosting.pacing import Pacing
-from emulator.hosting.port import Channel, count_drops, resume_reading
+from emulator.hosting.port import Port, count_drops, resume_reading
 from emulator.hosting.port_faults import PortFaults, outgoing
 from emulator.hosting.trafficlog import LOG_ONLY, TrafficLog
 from emulator.hosting.transports.base import Transport
 from emulator.hosting.walltimer import LOOP_TIMER_EARLY_S, WallTimer, make_timer
-from emulator.line import REALISTIC
+from emulator.wire_time import REALISTIC
 
 log = logging.getLogger("stage_emu.runner")
 
@@ -47,11 +47,11 @@ log = logging.getLogger("stage_emu.runner")
 RELEASE_EARLY_S = LOOP_TIMER_EARLY_S
 
 
-class _ChannelSink:
-    """Transport callbacks bound to the runner for one channel (partials: a port's every read and
+class _PortSink:
+    """Transport callbacks bound to the runner for one port (partials: a port's every read and
     every byte of input pass here, and a bound C-level call costs no Python frame)."""
 
-    def __init__(self, runner: DeviceRunner, channel: Channel) -> None:
+    def __init__(self, runner: DeviceRunner, channel: Port) -> None:
         self.host_attached: Callable[[HostLine | None], None] = partial(runner.host_attached, channel)
         self.host_detached: Callable[[], None] = partial(runner.host_detached, channel)
         self.host_line: Callable[[HostLine], None] = partial(runner.host_line, channel)
@@ -85,7 +85,7 @@ class DeviceRunner:
         #: the traffic records while someone takes them (explain.py), else None
         self._tap = None if traffic is None else Explainer(traffic, self.device.name)
         self.device.explain = self._tap is not None
-        self.channels: dict[str, Channel] = {name: Channel(name) for name in self.device.channels}
+        self.channels: dict[str, Port] = {name: Port(name) for name in self.device.channels}
         self._pacing = Pacing(self.channels)
         self._faults = PortFaults(self.clock, self._clear_wire, self.host_detached, self._recheck_express)
         self._on_event = on_event
@@ -124,7 +124,7 @@ class DeviceRunner:
         ch.transport = transport
         ch.timing = timing
         self._follow_settings()  # before any step: `host_data` relies on it
-        transport.open(_ChannelSink(self, ch))
+        transport.open(_PortSink(self, ch))
 
     def watch_traffic(self, sink: Callable[[dict[str, Any]], None] | None) -> None:
         """Hand each traffic record (as the log writes it) to `sink` as well; None stops that. The
@@ -144,13 +144,13 @@ class DeviceRunner:
 
     # ---- transport events ---------------------------------------------------------------------
 
-    def host_attached(self, ch: Channel, host: HostLine | None) -> None:
+    def host_attached(self, ch: Port, host: HostLine | None) -> None:
         ch.attached = True
         self._clear_wire(ch, "a new host attached")
         log.info("%s/%s: host attached", self.name, ch.name)
         self.host_line(ch, host)
 
-    def host_detached(self, ch: Channel) -> None:
+    def host_detached(self, ch: Port) -> None:
         ch.attached = False
         unheard = len(ch.from_host)
         ch.stats.input_discarded += unheard
@@ -161,7 +161,7 @@ class DeviceRunner:
         log.info("%s/%s: host detached%s", self.name, ch.name, lost)
         self.host_line(ch, None)
 
-    def host_line(self, ch: Channel, host: HostLine | None) -> None:
+    def host_line(self, ch: Port, host: HostLine | None) -> None:
         """The host's settings as the port sees them (None: no host)."""
         now = self.device_time.run(self.device, self.clock.shared.now(), None)
         ch.host = host
@@ -169,7 +169,7 @@ class DeviceRunner:
         self.device.line_changed(host, now, ch.name)
         self.pump()
 
-    def host_data(self, ch: Channel, data: bytes) -> None:
+    def host_data(self, ch: Port, data: bytes) -> None:
         # logged by the model once received (or by pacing.py if a hung device hears nothing)
         now = self.clock.now()
         if ch.pending_mismatch:
@@ -182,19 +182,19 @@ class DeviceRunner:
         ch.from_host.push(now, data)  # even when hung: the bytes take their wire time
         self.pump()
 
-    def host_line_error(self, ch: Channel, byte: int, kind: str) -> None:
+    def host_line_error(self, ch: Port, byte: int, kind: str) -> None:
         """A character the port's UART received with a line error, after the bytes handed over so
         far (emulator/hosting/line_errors.py)."""
         self._pacing.line_error(ch, byte, kind, self.clock.now())
         self.pump()
 
-    def input_discarded(self, ch: Channel, count: int) -> None:
+    def input_discarded(self, ch: Port, count: int) -> None:
         """The transport discarded input it had not handed over (the host hung up)."""
         ch.stats.input_discarded += count
         if self._tap is not None:
             self._tap.hung_up(self.clock.now(), ch.name, count)
 
-    def _clear_wire(self, ch: Channel, why: str, to_host_only: bool = False) -> None:
+    def _clear_wire(self, ch: Port, why: str, to_host_only: bool = False) -> None:
         """Forget what is on the wire in both directions (or only the device's output)."""
         if self._tap is not None:
             self._tap.cleared(self.clock.now(), ch, why, not to_host_only)
@@ -306,7 +306,7 @@ class DeviceRunner:
                 if self._tap is not None:
                     self._tap.left(t, ch.name, len(data), dropped)
 
-    def _send(self, ch: Channel, data: bytes) -> int:
+    def _send(self, ch: Port, data: bytes) -> int:
         """Hand bytes whose wire time is over to the port; returns how many of them were dropped."""
         if ch.transport is None or not ch.attached:
             return len(data)

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, Generic, TypeVar
 
 if TYPE_CHECKING:
-    from emulator.device import Device, HostServices
+    from emulator.device import Device, DeviceServices
     from emulator.profiles.profile import Config, Profile
 
 #: a family's profile dataclass (an `emulator.profiles.schema.Schema` with a `line` section)
@@ -30,7 +30,7 @@ class Family(Generic[C]):
     name: str
     summary: str
     schema: type[C]
-    factory: Callable[[str, Profile[C], float, HostServices], Device]
+    factory: Callable[[str, Profile[C], float, DeviceServices], Device]
     channels: Callable[[C], tuple[str, ...]] = main_only
 
 

@@ -37,7 +37,7 @@ from typing import Any, TypeVar
 
 from serial.serialutil import SerialException, SerialTimeoutException
 
-from emulator.device import MAIN, HostLine, HostServices, ModemLines, Store, StoreReport
+from emulator.device import MAIN, DeviceServices, HostLine, ModemLines, Store, StoreReport
 from emulator.hosting.runner import DeviceRunner
 from emulator.profiles import registry
 from emulator.profiles.profile import ProfileError, load_profile
@@ -100,7 +100,7 @@ class HostedDevice:
             self._stores.append(store)
             return store
 
-        services = HostServices(stores=open_store)
+        services = DeviceServices(stores=open_store)
         self.time = VirtualTime() if options.time == VIRTUAL else RealTime(options.scale)
         self.clock = self.time.clock
         #: the device's name on the in-process control channel

@@ -14,7 +14,7 @@ from urllib.parse import parse_qs, urlsplit
 
 from emulator.device import MAIN
 from emulator.hosting.clock import check_scale
-from emulator.line import REALISTIC, TIMINGS
+from emulator.wire_time import REALISTIC, TIMINGS
 
 SCHEME = "stageemu"
 PARAMETERS = ("profile", "timing", "time", "scale", "state", "attach", "channel")

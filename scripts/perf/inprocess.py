@@ -14,13 +14,13 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Sequence
 
-from emulator.device import Device, HostServices, LineSettings
+from emulator.device import Device, DeviceServices, LineSettings
 from emulator.hosting.clock import ManualClock
 from emulator.hosting.runner import DeviceRunner
 from emulator.hosting.transports.inprocess import InProcessTransport
-from emulator.line import FAST
 from emulator.profiles.profile import load_profile
 from emulator.profiles.registry import family
+from emulator.wire_time import FAST
 from scripts.perf.common import BenchError, Result, p50_p99
 
 HOST = LineSettings(9600, None, None, 1, False, False)
@@ -62,7 +62,7 @@ def _make(profile_name: str, now: float) -> Device:
     registered = family(profile.family)
     if registered is None:
         raise BenchError(f"{profile_name}: no device family {profile.family!r}")
-    return registered.factory("bench", profile, now, HostServices())
+    return registered.factory("bench", profile, now, DeviceServices())
 
 
 #: an exchange to time, and what happens between two exchanges (device time passing), untimed

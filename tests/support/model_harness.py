@@ -15,7 +15,7 @@ does, with no transport, traffic log or faults in between. Times are device seco
 - Control requests (`control`, `get`, `snapshot`) run as the runner's `call` does: the model brought
   up to `now` first, its effects collected after.
 
-Pacing is emulator/line.py's `Pacer` with `settings_char_time`, so unseen host settings are filled in
+Pacing is emulator/wire_time.py's `Pacer` with `settings_char_time`, so unseen host settings are filled in
 by `HostLine.filled` as everywhere else. One channel (main). Notes on received bytes stay on the
 model (`device.take_rx_notes()`): there is no traffic log to give them to.
 """
@@ -26,7 +26,7 @@ from collections.abc import Callable
 from typing import Any, Generic, TypeVar
 
 from emulator.device import MAIN, Device, Emission, HostLine
-from emulator.line import Pacer, settings_char_time
+from emulator.wire_time import Pacer, settings_char_time
 
 D = TypeVar("D", bound=Device)
 T = TypeVar("T")

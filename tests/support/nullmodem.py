@@ -39,8 +39,8 @@ from pathlib import Path
 
 from emulator.device import HostLine
 from emulator.hosting.transports.pty import host_settings
-from emulator.line import char_time
 from emulator.uart import Char, Framing, garble
+from emulator.wire_time import char_time
 
 #: read per wakeup from a master
 CHUNK = 4096

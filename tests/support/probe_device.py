@@ -20,8 +20,8 @@ from emulator.device import (
     UNSOLICITED,
     ControlError,
     Device,
+    DeviceServices,
     Emission,
-    HostServices,
     LineSettings,
 )
 from emulator.profiles import registry
@@ -46,7 +46,9 @@ class ProbeConfig(Config):
 
 
 class ProbeDevice(Device):
-    def __init__(self, name: str, profile: Profile[ProbeConfig], now: float, services: HostServices) -> None:
+    def __init__(
+        self, name: str, profile: Profile[ProbeConfig], now: float, services: DeviceServices
+    ) -> None:
         super().__init__(name, profile, now, services)
         self.pace_line = profile.config.knobs.pace_line
         self._buffer = bytearray()

@@ -12,13 +12,13 @@ import pstats
 
 import pytest
 
-from emulator.device import HostServices, LineSettings
+from emulator.device import DeviceServices, LineSettings
 from emulator.hosting.clock import ManualClock
 from emulator.hosting.lag import WorkBudget
 from emulator.hosting.runner import DeviceRunner
-from emulator.line import FAST, REALISTIC
 from emulator.profiles.profile import load_profile
 from emulator.profiles.registry import family
+from emulator.wire_time import FAST, REALISTIC
 from tests.support.memory_transport import MemoryTransport
 from tests.support.probe_device import PROBE_PROFILE as PROBE
 
@@ -51,7 +51,7 @@ def calls_per_round_trip(profile_name: str, request: bytes, reply: bytes | None,
     factory = registered.factory
     # with the daemon's work budget, so the step counted is the daemon's
     runner = DeviceRunner(
-        lambda now: factory("dut", profile, now, HostServices()), clock, budget=WorkBudget()
+        lambda now: factory("dut", profile, now, DeviceServices()), clock, budget=WorkBudget()
     )
     port = MemoryTransport()
     runner.attach_transport("main", port, timing)

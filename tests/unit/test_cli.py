@@ -10,7 +10,7 @@ import pytest
 from click.testing import CliRunner
 
 from emulator.cli import main
-from emulator.device import HostServices
+from emulator.device import DeviceServices
 from emulator.profiles import registry
 from emulator.profiles.profile import MAX_PROBLEMS, bundled_dir, bundled_names, display_path, load_profile
 from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)
@@ -153,7 +153,7 @@ def every_bundled_name(kind: str) -> tuple[dict[str, set[str]], dict[str, str]]:
         family = registry.family(profile.family)
         assert family is not None
         families[name] = profile.family
-        for item in family.factory(name, profile, 0.0, HostServices()).control_names()[kind]:
+        for item in family.factory(name, profile, 0.0, DeviceServices()).control_names()[kind]:
             found.setdefault(item, set()).add(name)
     return found, families
 

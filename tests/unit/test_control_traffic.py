@@ -11,14 +11,14 @@ from typing import Any
 
 import pytest
 
-from emulator.device import HostServices
+from emulator.device import DeviceServices
 from emulator.hosting.clock import ManualClock, ScaledClock
 from emulator.hosting.control import SUBSCRIBER_BACKLOG, ControlServer
 from emulator.hosting.runner import DeviceRunner
 from emulator.hosting.trafficlog import TrafficLog
-from emulator.line import FAST, REALISTIC, char_time
 from emulator.profiles.profile import load_profile
 from emulator.profiles.registry import family
+from emulator.wire_time import FAST, REALISTIC, char_time
 from tests.support.memory_transport import MemoryTransport
 from tests.unit.test_control import FakeWriter
 
@@ -29,7 +29,7 @@ UNSUBSCRIBE = '{"device": "stage", "op": "unsubscribe", "traffic": true}'
 def stage(timing: str = FAST, traffic: TrafficLog | None = None) -> tuple[DeviceRunner, MemoryTransport]:
     loaded = load_profile("ms2000")
     runner = DeviceRunner(
-        lambda now: family("ms2000").factory("stage", loaded, now, HostServices()),  # type: ignore[union-attr]
+        lambda now: family("ms2000").factory("stage", loaded, now, DeviceServices()),  # type: ignore[union-attr]
         ManualClock(),
         traffic=traffic,
     )

@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 
-from emulator.device import HostServices
+from emulator.device import DeviceServices
 from emulator.devices.mp285.commands import TABLE as MP285_TABLE
 from emulator.devices.mp285.schema import Mp285Config
 from emulator.devices.ms2000.model import Ms2000Device
@@ -105,7 +105,7 @@ def ms2000_commands() -> set[str]:
         profile = load_profile(name)
         if profile.family != "ms2000":
             continue
-        device = Ms2000Device("index", profile, 0.0, HostServices())
+        device = Ms2000Device("index", profile, 0.0, DeviceServices())
         keys |= set(device.base_table) | set(device.modules.handlers())
     return keys
 

@@ -14,14 +14,14 @@ from typing import Any
 
 import pytest
 
-from emulator.device import HostServices, LineSettings
+from emulator.device import DeviceServices, LineSettings
 from emulator.hosting.clock import ManualClock, ScaledClock
 from emulator.hosting.control import ControlServer
 from emulator.hosting.lag import DeviceClock, WorkBudget
 from emulator.hosting.runner import DeviceRunner
-from emulator.line import FAST
 from emulator.profiles.profile import load_profile
 from emulator.profiles.registry import family
+from emulator.wire_time import FAST
 from tests.support.memory_transport import MemoryTransport
 
 HOST = LineSettings(9600, None, None, 1, False, False)
@@ -49,7 +49,7 @@ def _runner(
     profile = load_profile("ms2000-seq")
     events: list[dict[str, Any]] = []
     runner = DeviceRunner(
-        lambda now: family("ms2000").factory("seq", profile, now, HostServices()),
+        lambda now: family("ms2000").factory("seq", profile, now, DeviceServices()),
         clock,
         on_event=lambda _name, event: events.append(event),
         budget=budget,
@@ -153,7 +153,7 @@ def test_a_clock_step_is_answered_once_every_device_has_run_the_stepped_time(tmp
         clock.pause()
         profile = load_profile("ms2000-seq")
         runner = DeviceRunner(
-            lambda now: family("ms2000").factory("seq", profile, now, HostServices()),
+            lambda now: family("ms2000").factory("seq", profile, now, DeviceServices()),
             clock,
             loop=asyncio.get_running_loop(),
             budget=WorkBudget(seconds=SLICE, timer=Ticks()),

@@ -19,7 +19,13 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("profiles", ("emulator.profiles",)),
     (
         "contract",
-        ("emulator.device", "emulator.motion", "emulator.line", "emulator.uart", "emulator.control_client"),
+        (
+            "emulator.device",
+            "emulator.motion",
+            "emulator.wire_time",
+            "emulator.uart",
+            "emulator.control_client",
+        ),
     ),
     ("devices", ("emulator.devices",)),
     ("hosting", ("emulator.hosting",)),

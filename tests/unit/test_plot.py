@@ -13,16 +13,16 @@ from typing import Any
 
 import pytest
 
-from emulator.device import HostServices, LineSettings
+from emulator.device import DeviceServices, LineSettings
 from emulator.hosting.clock import ManualClock
 from emulator.hosting.runner import DeviceRunner
 from emulator.hosting.trafficlog import TrafficLog
-from emulator.line import FAST
 from emulator.profiles.profile import load_profile
 from emulator.profiles.registry import family
 from emulator.tools.plot import POINTS, Leg, Session, Track, TrackBuilder
 from emulator.tools.plot_scan import read_log, read_session
 from emulator.tools.readers import ReadError
+from emulator.wire_time import FAST
 from protocols import mp285
 from tests.support.memory_transport import MemoryTransport
 from tests.support.model_harness import ModelHarness
@@ -179,7 +179,7 @@ def serve(tmp_path: Path, profile: str) -> Served:
     assert registered is not None
     traffic = TrafficLog(tmp_path / "traffic.jsonl")
     runner = DeviceRunner(
-        lambda now: registered.factory("stage", loaded, now, HostServices()), clock, traffic=traffic
+        lambda now: registered.factory("stage", loaded, now, DeviceServices()), clock, traffic=traffic
     )
     port = MemoryTransport()
     runner.attach_transport("main", port, FAST)
@@ -210,7 +210,9 @@ def test_ms2000_builds_no_move_records_without_a_traffic_log() -> None:
     profile = load_profile("ms2000")
     registered = family(profile.family)
     assert registered is not None
-    harness = ModelHarness(lambda now: registered.factory("stage", profile, now, HostServices()), paced=False)
+    harness = ModelHarness(
+        lambda now: registered.factory("stage", profile, now, DeviceServices()), paced=False
+    )
     harness.advance(2.0)
     harness.write(b"M X=10000\r")
     harness.advance(4.0)

@@ -16,16 +16,16 @@ import pytest
 from click.testing import CliRunner
 
 from emulator.cli import main
-from emulator.device import HostServices, LineSettings
+from emulator.device import DeviceServices, LineSettings
 from emulator.hosting.clock import ManualClock
 from emulator.hosting.runner import DeviceRunner
 from emulator.hosting.trafficlog import AF_SAMPLE, CRISP_SAMPLE, TrafficLog
-from emulator.line import FAST
 from emulator.profiles.profile import load_profile
 from emulator.profiles.registry import family
 from emulator.tools.plot_focus import AfRun, StateChange
 from emulator.tools.plot_scan import focus_device, read_focus, scan_records
 from emulator.tools.readers import ReadError
+from emulator.wire_time import FAST
 from tests.support.memory_transport import MemoryTransport
 from tests.support.model_harness import ModelHarness
 
@@ -221,7 +221,7 @@ def serve(log: Path, profile: str) -> Served:
     assert registered is not None
     published: list[dict[str, Any]] = []
     runner = DeviceRunner(
-        lambda now: registered.factory("stage", loaded, now, HostServices()),
+        lambda now: registered.factory("stage", loaded, now, DeviceServices()),
         clock,
         traffic=TrafficLog(log),
         on_event=lambda _, event: published.append(event),
@@ -296,7 +296,9 @@ def test_without_a_traffic_log_no_sample_is_built(profile: str, commands: list[b
     loaded = load_profile(profile)
     registered = family(loaded.family)
     assert registered is not None
-    harness = ModelHarness(lambda now: registered.factory("stage", loaded, now, HostServices()), paced=False)
+    harness = ModelHarness(
+        lambda now: registered.factory("stage", loaded, now, DeviceServices()), paced=False
+    )
     harness.advance(2.0)
     for command in commands:
         harness.write(command)

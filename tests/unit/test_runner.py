@@ -9,14 +9,14 @@ from pathlib import Path
 
 import pytest
 
-from emulator.device import HostServices, LineSettings
+from emulator.device import DeviceServices, LineSettings
 from emulator.hosting.clock import ManualClock, ScaledClock
 from emulator.hosting.port import INPUT_BACKLOG, OUTPUT_BACKLOG
 from emulator.hosting.runner import RELEASE_EARLY_S, DeviceRunner
 from emulator.hosting.trafficlog import TrafficLog
-from emulator.line import FAST, REALISTIC
 from emulator.profiles.profile import load_profile
 from emulator.profiles.registry import family
+from emulator.wire_time import FAST, REALISTIC
 from tests.support.memory_transport import MemoryTransport
 from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)
 
@@ -43,7 +43,7 @@ def make(
     profile = load_profile(PROBE, overrides=overrides)
     events: list[tuple[str, dict]] = []
     runner = DeviceRunner(
-        lambda now: family("probe").factory("probe-0", profile, now, HostServices()),
+        lambda now: family("probe").factory("probe-0", profile, now, DeviceServices()),
         clock,
         traffic=traffic,
         on_event=lambda name, ev: events.append((name, ev)),
@@ -397,7 +397,9 @@ def test_paced_output_is_released_half_a_millisecond_early_on_a_running_clock() 
     wall = [100.0]
     clock = ScaledClock(1.0, wall=lambda: wall[0])
     profile = load_profile(PROBE)
-    runner = DeviceRunner(lambda now: family("probe").factory("probe-0", profile, now, HostServices()), clock)
+    runner = DeviceRunner(
+        lambda now: family("probe").factory("probe-0", profile, now, DeviceServices()), clock
+    )
     port = MemoryTransport()
     runner.attach_transport("main", port, REALISTIC)
     port.attach(LineSettings(9600, None, None, 1, False, False))

@@ -10,14 +10,14 @@ from typing import Any
 from hypothesis import given
 from hypothesis import strategies as st
 
-from emulator.device import HostServices, LineSettings
+from emulator.device import DeviceServices, LineSettings
 from emulator.hosting import mismatch
 from emulator.hosting.clock import ManualClock
-from emulator.hosting.port import Channel
+from emulator.hosting.port import Port
 from emulator.hosting.runner import DeviceRunner
-from emulator.line import FAST, REALISTIC
 from emulator.profiles.profile import load_profile
 from emulator.profiles.registry import family
+from emulator.wire_time import FAST, REALISTIC
 from tests.support.fuzz import fuzz_settings
 from tests.support.memory_transport import MemoryTransport
 from tests.support.probe_device import PROBE_PROFILE as PROBE
@@ -32,7 +32,7 @@ HOST = LineSettings(9600, None, None, 1, False, False)
 class PumpedRunner(DeviceRunner):
     """The reference: host bytes always queued on the input pacer, then one whole step."""
 
-    def host_data(self, ch: Channel, data: bytes) -> None:
+    def host_data(self, ch: Port, data: bytes) -> None:
         ch.from_host.push(self.clock.now(), data)
         if ch.pending_mismatch:
             mismatch.report(ch, self.device)
@@ -77,7 +77,7 @@ def start(runner_type: type[DeviceRunner], profile_path: str, timing: str) -> Ru
     factory = registered.factory
     events: list[tuple[str, dict[str, Any]]] = []
     runner = runner_type(
-        lambda now: factory("dut", profile, now, HostServices()),
+        lambda now: factory("dut", profile, now, DeviceServices()),
         clock,
         on_event=lambda name, ev: events.append((name, ev)),
     )

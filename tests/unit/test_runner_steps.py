@@ -1,17 +1,17 @@
 """The runner's step as its parts see it: the device's line settings are read once per step (and once
 more only after a change between steps), a change made between steps paces that very step, and the
-direct step's predicate (`Channel.express`) follows each of its inputs."""
+direct step's predicate (`Port.express`) follows each of its inputs."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from typing import Any
 
-from emulator.device import HostServices, LineSettings
+from emulator.device import DeviceServices, LineSettings
 from emulator.hosting.clock import ManualClock
 from emulator.hosting.runner import DeviceRunner
-from emulator.line import FAST, REALISTIC
 from emulator.profiles.profile import load_profile
+from emulator.wire_time import FAST, REALISTIC
 from tests.support.memory_transport import MemoryTransport
 from tests.support.probe_device import PROBE_PROFILE as PROBE
 from tests.support.probe_device import ProbeDevice
@@ -49,7 +49,7 @@ class Host:
 def make(timing: str) -> Host:
     clock = ManualClock()
     profile = load_profile(PROBE)
-    runner = DeviceRunner(lambda now: CountingProbe("probe-0", profile, now, HostServices()), clock)
+    runner = DeviceRunner(lambda now: CountingProbe("probe-0", profile, now, DeviceServices()), clock)
     port = MemoryTransport()
     runner.attach_transport("main", port, timing)
     port.attach(HOST)

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 import serial
 
-from emulator.device import FRAMING_ERROR, PARITY_ERROR, HostLine, HostServices, LineSettings, ModemLines
+from emulator.device import FRAMING_ERROR, PARITY_ERROR, DeviceServices, HostLine, LineSettings, ModemLines
 from emulator.hosting.clock import ManualClock
 from emulator.hosting.line_errors import UNSEEN_HOST
 from emulator.hosting.runner import DeviceRunner
@@ -25,9 +25,9 @@ from emulator.hosting.trafficlog import TrafficLog
 from emulator.hosting.transports.pty import OUTPUT_LIMIT, PortError
 from emulator.hosting.transports.serial import REOPEN_S, SerialHost, SerialTransport
 from emulator.hosting.transports.serial_io import FdIo
-from emulator.line import FAST
 from emulator.profiles.profile import load_profile
 from emulator.profiles.registry import family
+from emulator.wire_time import FAST
 from tests.support.memory_transport import MemoryTransport
 from tests.support.nullmodem import NullModem
 
@@ -319,7 +319,7 @@ def mp285_runner(traffic: TrafficLog | None = None) -> tuple[DeviceRunner, Memor
     profile = load_profile("mp285")
     clock = ManualClock()
     runner = DeviceRunner(
-        lambda now: family("mp285").factory("mp285", profile, now, HostServices()),
+        lambda now: family("mp285").factory("mp285", profile, now, DeviceServices()),
         clock,
         traffic=traffic,
     )
@@ -368,7 +368,7 @@ def test_the_port_is_told_when_the_device_settings_change_also_after_a_reset() -
     again: the transport is told each time, with the current model's settings."""
     profile = load_profile("ms2000")
     runner = DeviceRunner(
-        lambda now: family("ms2000").factory("ms2000", profile, now, HostServices()), ManualClock()
+        lambda now: family("ms2000").factory("ms2000", profile, now, DeviceServices()), ManualClock()
     )
     port = FollowingTransport()
     runner.attach_transport("main", port, FAST)

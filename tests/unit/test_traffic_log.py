@@ -13,13 +13,13 @@ from typing import Any
 
 import pytest
 
-from emulator.device import HostServices, LineSettings
+from emulator.device import DeviceServices, LineSettings
 from emulator.hosting.clock import ManualClock
 from emulator.hosting.runner import DeviceRunner
 from emulator.hosting.trafficlog import SNIFF_BYTES, NotATrafficLog, TrafficLog
-from emulator.line import FAST, REALISTIC, char_time
 from emulator.profiles.profile import load_profile
 from emulator.profiles.registry import family
+from emulator.wire_time import FAST, REALISTIC, char_time
 from protocols import mp285
 from tests.support.memory_transport import MemoryTransport
 from tests.support.probe_device import PROBE_PROFILE as PROBE  # (registers the `probe` family)
@@ -61,7 +61,7 @@ def logged(
     traffic = TrafficLog(path)
     name = loaded.family
     runner = DeviceRunner(
-        lambda now: family(name).factory("dut", loaded, now, HostServices()),  # type: ignore[union-attr]
+        lambda now: family(name).factory("dut", loaded, now, DeviceServices()),  # type: ignore[union-attr]
         clock,
         traffic=traffic,
     )
@@ -283,7 +283,7 @@ def test_without_a_traffic_log_nothing_is_explained() -> None:
     clock = ManualClock()
     profile = load_profile("mp285")
     runner = DeviceRunner(
-        lambda now: family("mp285").factory("dut", profile, now, HostServices()),  # type: ignore[union-attr]
+        lambda now: family("mp285").factory("dut", profile, now, DeviceServices()),  # type: ignore[union-attr]
         clock,
     )
     device = runner.device

@@ -14,14 +14,14 @@ import pytest
 import serial
 
 import emulator.urlhandler  # noqa: F401  (registers stageemu://)
-from emulator.device import HostServices, LineSettings
+from emulator.device import DeviceServices, LineSettings
 from emulator.hosting.clock import ManualClock
 from emulator.hosting.port import INPUT_BACKLOG
 from emulator.hosting.runner import DeviceRunner
 from emulator.hosting.transports.pty import READ_CHUNK
-from emulator.line import FAST
 from emulator.profiles.profile import load_profile
 from emulator.profiles.registry import family
+from emulator.wire_time import FAST
 from tests.support.memory_transport import MemoryTransport
 
 CHAR_9600 = 10 / 9600
@@ -102,7 +102,7 @@ def mp285_reference(data: bytes) -> bytes:
     (READ_CHUNK bytes per read), on a manual clock."""
     profile = load_profile("mp285")
     runner = DeviceRunner(
-        lambda now: family("mp285").factory("ref", profile, now, HostServices()), ManualClock()
+        lambda now: family("mp285").factory("ref", profile, now, DeviceServices()), ManualClock()
     )
     wire = MemoryTransport()
     runner.attach_transport("main", wire, FAST)

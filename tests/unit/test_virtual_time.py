@@ -10,9 +10,9 @@ import serial
 
 import emulator.urlhandler  # noqa: F401  (registers stageemu://)
 from emulator.control_client import ControlFailure
-from emulator.line import char_time
 from emulator.urlhandler.hosted import serve
 from emulator.urlhandler.url import VIRTUAL, AttachOptions, UrlOptions, parse_url
+from emulator.wire_time import char_time
 from protocols.clients.ms2000 import MS2000
 
 CHAR = char_time(9600)

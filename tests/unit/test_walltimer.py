@@ -8,7 +8,7 @@ import time
 
 import pytest
 
-from emulator.device import HostServices
+from emulator.device import DeviceServices
 from emulator.hosting import walltimer
 from emulator.hosting.clock import ScaledClock
 from emulator.hosting.runner import DeviceRunner
@@ -107,7 +107,7 @@ def test_a_scale_change_rearms_the_runner_for_the_same_device_time() -> None:
         clock = ScaledClock(1.0)
         profile = load_profile(PROBE)
         runner = DeviceRunner(
-            lambda now: family("probe").factory("probe-0", profile, now, HostServices()), clock, loop=loop
+            lambda now: family("probe").factory("probe-0", profile, now, DeviceServices()), clock, loop=loop
         )
         due = clock.now() + 10.0
         reached = asyncio.Event()

@@ -1,7 +1,7 @@
 """Sutter MP-285 / MP-285A controller: the sans-I/O device model (docs/mp285.md; rule IDs MP-n).
 
 The wire format lives in protocols.mp285; the controller's parts live beside this module, one
-concern each: line.py the serial port (MP-1 ... MP-7); receiver.py frames, and bytes while a move
+concern each: serial_line.py the serial port (MP-1 ... MP-7); receiver.py frames, and bytes while a move
 is outstanding (§7); commands.py the dispatch table (§2 ... §10); motion.py geometry, runs and
 programs (§4, §6, §10); status.py the status block and display (§9, §11); faults.py crash
 signature, recovery and the ROE (§12); movelog.py the traffic log's `move` records.
@@ -29,19 +29,19 @@ from emulator.device import (
     MAIN,
     ControlError,
     Device,
+    DeviceServices,
     Emission,
     HostLine,
-    HostServices,
     LineSettings,
     ModemLines,
 )
 from emulator.devices.mp285.commands import run_item
 from emulator.devices.mp285.faults import Crash, Roe, crash_signature, roe_turn
-from emulator.devices.mp285.line import Line
 from emulator.devices.mp285.motion import Halt, Program, Run, Stage, Xyz
 from emulator.devices.mp285.movelog import rest_record, run_record
 from emulator.devices.mp285.receiver import Receiver
 from emulator.devices.mp285.schema import Mp285Config, speed_limits
+from emulator.devices.mp285.serial_line import SerialLine
 from emulator.devices.mp285.states import DEAF_REASONS, FRAME_STATES, LISTENING, ROE_REFUSED, Event, State
 from emulator.devices.mp285.status import Display, Status
 from emulator.profiles.profile import Profile
@@ -62,7 +62,9 @@ class Mp285Device(Device):
     """One MP-285 or MP-285A controller with its stage. It holds its `State` in `_state` and makes
     every transition (states.py lists them); `_run` is set exactly while MOVING."""
 
-    def __init__(self, name: str, profile: Profile[Mp285Config], now: float, services: HostServices) -> None:
+    def __init__(
+        self, name: str, profile: Profile[Mp285Config], now: float, services: DeviceServices
+    ) -> None:
         super().__init__(name, profile, now, services)
         config = profile.config
         self.controller = config.controller
@@ -72,7 +74,7 @@ class Mp285Device(Device):
         settings = LineSettings(
             line.baud, line.data_bits, line.parity, line.stop_bits, line.flow_control == "rtscts", False
         )
-        self._line = Line(settings, self.controller, self.knobs, self._emit, self.notes)
+        self._line = SerialLine(settings, self.controller, self.knobs, self._emit, self.notes)
         self.pace_line = self._line.pace_line
         self.stage = Stage(config.stage, self.knobs)
         self.status = Status(self.controller, config.stage, self.knobs)

@@ -21,7 +21,7 @@ from emulator.devices.ms2000.trajectory import Trajectory
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.axis_host import AxisHost
+    from emulator.devices.ms2000.axis_owner import AxisOwner
     from emulator.devices.ms2000.scheduler import Timer
     from emulator.devices.ms2000.sections import Ms2000Axis
 
@@ -29,7 +29,7 @@ if TYPE_CHECKING:
 class Axis:
     def __init__(
         self,
-        host: AxisHost[Axis],
+        controller: AxisOwner[Axis],
         index: int,
         letter: str,
         cfg: Ms2000Axis,
@@ -37,7 +37,7 @@ class Axis:
         auto: AxisAuto,
         t: float,
     ) -> None:
-        self.host = host
+        self.controller = controller
         self.index = index
         self.hw_letter = letter  # profile letter: persistence key
         self.letter = letter  # current name (Z2B may rename it at reset, MS-115)
@@ -168,7 +168,7 @@ class Axis:
             if self.ensync_mm is not None:
                 side = (x > self.ensync_mm) - (x < self.ensync_mm)
                 if side and self.ensync_side and side != self.ensync_side:
-                    self.host.ensync_toggle()
+                    self.controller.ensync_toggle()
                 if side:
                     self.ensync_side = side
         self._sample_t = t
@@ -193,18 +193,18 @@ class Axis:
 
     def schedule(self, due: float, action: Any) -> None:
         self.cancel_timer()
-        self.timer = self.host.at(due, action)
+        self.timer = self.controller.at(due, action)
 
     def set_path(self, t: float, segments: list[trajectory.Segment]) -> None:
         self.traj = Trajectory(t, self.pos(t), segments)
-        self.host.path_changed(self, t)
+        self.controller.path_changed(self, t)
 
     def rest(self, t: float, x: float) -> None:
         cut = self.traj.end > t  # stopped before the planned end (HALT, a limit): the path changed
         self.traj = Trajectory.rest(t, x)
         if cut:
-            self.host.path_changed(self, t)
-        self.host.positions_changed()  # every end of motion passes here (MS-111)
+            self.controller.path_changed(self, t)
+        self.controller.positions_changed()  # every end of motion passes here (MS-111)
 
     def stop(self, t: float) -> None:
         """Stop dead where the axis is (HALT, stall, MS-76, MS-88); the target follows."""
@@ -264,7 +264,7 @@ class Axis:
     def _plan_leg(self, t: float, goal: float, v: float, vmax: float, accel: float) -> None:
         self.set_path(t, trajectory.plan(t, self.pos(t), v, goal, vmax, accel))
         self.schedule(self.traj.end, lambda due: self._leg_end(due, goal))
-        self.host.record_sample(self, t)
+        self.controller.record_sample(self, t)
 
     def brake(self, t: float) -> bool:
         """Ramp a commanded move down from its current velocity at the rate its ramps were planned
@@ -291,7 +291,7 @@ class Axis:
         self.timer = None
         self.sample(t)
         self.rest(t, goal)
-        self.host.record_sample(self, t)
+        self.controller.record_sample(self, t)
         if self.legs:
             self._next_leg(t)
         else:
@@ -299,9 +299,9 @@ class Axis:
 
     def _landed(self, t: float) -> None:
         if self.clamped is not None:
-            self.host.log_error(LIMIT_CODES[self.clamped])
+            self.controller.log_error(LIMIT_CODES[self.clamped])
             self.clamped = None
-        settle = self.host.knobs.landing_ms / 1000
+        settle = self.controller.knobs.landing_ms / 1000
         wait = self.s.wait_ms / 1000
         if self.activity is Activity.MOVE and self.s.maintain == 3:
             # MA=3: busy clears at landing, the servo stays on for the wait time (MS-61)
@@ -322,8 +322,8 @@ class Axis:
         activity = self.activity
         self.activity = Activity.IDLE
         if activity in (Activity.MOVE, Activity.HOME):
-            self.host.axis_finished(self, t)
-        self.host.resume_manual(self, t)
+            self.controller.axis_finished(self, t)
+        self.controller.resume_manual(self, t)
 
     # ---- open-ended motion: spin, VE, joystick -------------------------------------------------
 
@@ -381,7 +381,7 @@ class Axis:
         self.rest(t, float(round_half_away(x)))
         self.target = round_half_away(x)
         self.activity = Activity.IDLE
-        self.host.resume_manual(self, t)
+        self.controller.resume_manual(self, t)
 
     def _limit_stop(self, t: float, end: str) -> None:
         self.timer = None
@@ -396,7 +396,7 @@ class Axis:
         self.activity = Activity.IDLE
         self.velocity_cmd = 0.0
         if activity in (Activity.SPIN, Activity.VELOCITY):
-            self.host.log_error(LIMIT_CODES[end])
+            self.controller.log_error(LIMIT_CODES[end])
 
     def nudge(self, t: float, delta_counts: float) -> None:
         """Wheel motion: a relative move that is not busy (MS-84)."""
@@ -420,7 +420,7 @@ class Axis:
         self.wheel_goal = None
         self.target = round_half_away(goal)
         self.activity = Activity.IDLE
-        self.host.resume_manual(self, t)
+        self.controller.resume_manual(self, t)
 
     # ---- disturbances, runaway, dead axis (MS-61, MS-62, MS-88) --------------------------------
 
@@ -433,7 +433,7 @@ class Axis:
         if not self.traj.moving(t) and self.activity is Activity.IDLE:
             return False
         self.stop(t)
-        self.host.log_error(20 + self.index)
+        self.controller.log_error(20 + self.index)
         return True
 
     # ---- module-driven motion: frames and paths (MS-PC-2, MS-MULTI-1) --------------------------
@@ -481,7 +481,7 @@ class Axis:
     def end_path(self, t: float) -> None:
         """The pattern is over: the axis rests where it is and manual input may take it again."""
         self.stop(t)
-        self.host.resume_manual(self, t)
+        self.controller.resume_manual(self, t)
 
     def power_off(self, t: float) -> None:
         """Motion stops and every timer of the axis is dropped."""

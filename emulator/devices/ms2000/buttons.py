@@ -46,7 +46,7 @@ def classify(ms: float) -> str:
     return LONG if ms < 3000 else EXTRA
 
 
-class ButtonsHost(Protocol):
+class ButtonsOwner(Protocol):
     """All the front panel uses of its controller."""
 
     @property
@@ -73,8 +73,8 @@ class ButtonsHost(Protocol):
 
 
 class Buttons:
-    def __init__(self, ctl: ButtonsHost) -> None:
-        self.ctl = ctl
+    def __init__(self, controller: ButtonsOwner) -> None:
+        self.controller = controller
         self.flags = 0
         self.fast = True
         self.toggled_at: float | None = None
@@ -87,31 +87,31 @@ class Buttons:
         self.toggled_at = None
 
     def enabled(self, name: str) -> bool:
-        return bool(self.ctl.card.button_enable & ENABLE_BIT[name])
+        return bool(self.controller.card.button_enable & ENABLE_BIT[name])
 
     def press(self, name: str, ms: float, t: float) -> None:
         if not self.enabled(name):
             return
-        if name == "zero" and self.ctl.card.button_zero_normal != 0:
-            self.ctl.halt_all(t)
-        self.ctl.at(t + ms / 1000, lambda due: self.release(name, ms, due))
+        if name == "zero" and self.controller.card.button_zero_normal != 0:
+            self.controller.halt_all(t)
+        self.controller.at(t + ms / 1000, lambda due: self.release(name, ms, due))
 
     def release(self, name: str, ms: float, t: float) -> None:
         press = classify(ms)
         self.held_ms = ms
         shift = FLAG_SHIFT[name]
         self.flags = (self.flags & ~(3 << shift)) | (PRESS_CODES[press] << shift)
-        if self.ctl.card.vb_flags & 2 and name == "joystick":
-            self.ctl.unsolicited("p" if press == NORMAL else "P", t)
+        if self.controller.card.vb_flags & 2 and name == "joystick":
+            self.controller.unsolicited("p" if press == NORMAL else "P", t)
         self.run(name, press, t)
 
     def run(self, name: str, press: str, t: float) -> None:
         """Modules claim a press first, by priority (MS-85); else its assigned function runs."""
-        if not self.ctl.modules.button(name, press, t):
+        if not self.controller.modules.button(name, press, t):
             self.run_function(self.function_for(name, press), t)
 
     def function_for(self, name: str, press: str) -> int:
-        card = self.ctl.card
+        card = self.controller.card
         if (name, press) == ("zero", NORMAL):
             return card.button_zero_normal
         if (name, press) == ("home", NORMAL):
@@ -121,16 +121,16 @@ class Buttons:
         if (name, press) == ("joystick", EXTRA):
             return card.button_joystick_extra
         letter = BCA_PRESS.get((name, press))
-        return self.ctl.card_auto.bca.get(letter, 0) if letter else 0
+        return self.controller.card_auto.bca.get(letter, 0) if letter else 0
 
     def functions(self) -> dict[int, Callable[[float], None]]:
         table: dict[int, Callable[[float], None]] = {
             0: lambda t: None,
-            1: self.ctl.zero_all,
-            2: self.ctl.move_all_to_zero,
+            1: self.controller.zero_all,
+            2: self.controller.move_all_to_zero,
             3: self.toggle,
         }
-        table.update(self.ctl.modules.button_functions())
+        table.update(self.controller.modules.button_functions())
         return table
 
     def valid_function(self, number: float) -> bool:

@@ -63,9 +63,9 @@ class ServoHold:
         """Beyond RU the motor is disabled: whatever the axis was doing stops there (MS-62)."""
         axis = self.axis
         if self._active() and error_counts / axis.counts_per_mm > axis.s.runaway:
-            axis.host.disable_motor(axis, t)
+            axis.controller.disable_motor(axis, t)
             self.cancel()
-            axis.host.log_error(30 + axis.index)
+            axis.controller.log_error(30 + axis.index)
 
     def consider(self, t: float) -> None:
         """Start correcting if the axis is off its target by more than the drift error."""
@@ -78,7 +78,7 @@ class ServoHold:
         unlimited = axis.s.maintain in (1, 2)
         if not unlimited and self.attempts >= CORRECTION_ATTEMPTS:
             return
-        self.correction = axis.host.at(t + axis.host.servo_s, self._attempt)
+        self.correction = axis.controller.at(t + axis.controller.servo_s, self._attempt)
 
     def _attempt(self, t: float) -> None:
         axis = self.axis
@@ -91,9 +91,9 @@ class ServoHold:
         self.attempts += 1
         if self.hold:
             if axis.s.maintain in (1, 2) or self.attempts < CORRECTION_ATTEMPTS:
-                self.correction = axis.host.at(t + CORRECTION_SPACING_S, self._attempt)
+                self.correction = axis.controller.at(t + CORRECTION_SPACING_S, self._attempt)
             else:
-                axis.host.log_error(60 + axis.index)
+                axis.controller.log_error(60 + axis.index)
             return
         axis.sample(t)
         axis.activity = Activity.CORRECT

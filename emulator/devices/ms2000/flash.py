@@ -17,7 +17,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-from emulator.device import HostServices, Store
+from emulator.device import DeviceServices, Store
 from emulator.storage.nvstore import StorageError
 
 FORMAT = 1
@@ -31,7 +31,7 @@ class Flash:
 
     def __init__(
         self,
-        services: HostServices,
+        services: DeviceServices,
         device_id: str,
         identity: dict[str, Any],
         on_result: Callable[[StorageError | None], None],

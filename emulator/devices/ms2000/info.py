@@ -54,25 +54,25 @@ def _row(left: str, right: str) -> str:
     return f"{left:<{INFO_LEFT_WIDTH}}{right}"
 
 
-def info_block(ctl: Reported, axis: Axis, t: float) -> list[str]:
+def info_block(controller: Reported, axis: Axis, t: float) -> list[str]:
     """The INFO report of one axis: 21 rows of two items, left item padded to 33 characters."""
     s = axis.s
     c = s.counts_per_mm
-    servo_ms = ctl.cfg.servo_ms
+    servo_ms = controller.cfg.servo_ms
     steps = max(1, round_half_away(s.accel_ms / servo_ms))
     vmax_enc = math.floor(min(s.speed, axis.max_speed) * c * servo_ms / 1000)
     dv_enc = vmax_enc // steps
-    pc_tag = "[PC]" if ctl.knobs.info_fix_pc_tag else "[PC}"
+    pc_tag = "[PC]" if controller.knobs.info_fix_pc_tag else "[PC}"
     position = axis.pos(t)
     velocity = axis.traj.vel(t)
     vmax = axis.max_speed * c
     dac = 128 + round(127 * max(-1.0, min(1.0, velocity / vmax))) if vmax else 128
-    settle = fixed(ctl.knobs.landing_ms, 0)
-    sign = -1 if ctl.manual_inverted(axis) else 1
+    settle = fixed(controller.knobs.landing_ms, 0)
+    sign = -1 if controller.manual_inverted(axis) else 1
     return [
         _row(
             f"{'Axis Name':<{LABEL_WIDTH}}:  {axis.letter}",
-            f"{'Limits Status':<{LABEL_WIDTH}}: {ctl.left_char(axis, t)}",
+            f"{'Limits Status':<{LABEL_WIDTH}}: {controller.left_char(axis, t)}",
         ),
         _row(
             _item("Input Device", INPUT_DEVICES.get(s.input_device, "NONE"), " [J]"),
@@ -131,19 +131,19 @@ def info_block(ctl: Reported, axis: Axis, t: float) -> list[str]:
         _row(_item("mm/sec/DAC_ct", fixed(s.dac, 5), " [D]"), _item("Enc Cnts/mm", fixed(c, 2), " [C]")),
         _row(
             _item("Wait Time", str(s.wait_ms), " [WT]"),
-            _item("Button Enable", str(ctl.card.button_enable), " [BE]"),
+            _item("Button Enable", str(controller.card.button_enable), " [BE]"),
         ),
     ]
 
 
-def build_lines(ctl: Reported) -> list[str]:
+def build_lines(controller: Reported) -> list[str]:
     """BU X (MS-102): build name, axes, command letters, boot loader, hardware, one line per module."""
-    cfg = ctl.cfg
+    cfg = controller.cfg
     lines = [
         cfg.build_name,
-        " ".join([BU_MOTOR_AXES, *(a.letter for a in ctl.axes)]),
+        " ".join([BU_MOTOR_AXES, *(a.letter for a in controller.axes)]),
         f"{BU_CMDS} {cfg.cmd_letters}",
         cfg.bootldr,
         cfg.hdwr,
     ]
-    return [*lines, *ctl.modules.bu_lines()]
+    return [*lines, *controller.modules.bu_lines()]

@@ -49,7 +49,7 @@ class Resets(Protocol):
         """`~` or `RESET` (MS-112)."""
 
 
-class InterpreterHost(Protocol):
+class InterpreterOwner(Protocol):
     """All the command line uses of its controller."""
 
     @property
@@ -85,8 +85,8 @@ class InterpreterHost(Protocol):
 
 
 class Interpreter:
-    def __init__(self, ctl: InterpreterHost, handlers: dict[str, Handler]) -> None:
-        self.ctl = ctl
+    def __init__(self, controller: InterpreterOwner, handlers: dict[str, Handler]) -> None:
+        self.controller = controller
         self.handlers = handlers
         self.low_level = False
         self.silenced = False
@@ -116,12 +116,12 @@ class Interpreter:
             # match again, so its first line at the right settings is read cleanly (TV-120)
             self._junk = False
             self._drop_line(t, STRAY, "junk from a mismatched host, dropped (MS-4)")
-            self.ctl.low.drop(t, STRAY, "junk from a mismatched host, dropped (MS-4)")
+            self.controller.low.drop(t, STRAY, "junk from a mismatched host, dropped (MS-4)")
         index = 0
         while index < len(data):
             if self.silenced:
-                if self.ctl.notes.on:
-                    self.ctl.notes.rx(t, LOST, data[index:], "silent after SP (MS-113)")
+                if self.controller.notes.on:
+                    self.controller.notes.rx(t, LOST, data[index:], "silent after SP (MS-113)")
                 return
             if self._ff or self.low_level:
                 self._byte(data[index], t)
@@ -142,9 +142,9 @@ class Interpreter:
             stop = control
         if stop > start:
             run = data[start:stop]
-            if self.ctl.notes.on:
+            if self.controller.notes.on:
                 self._heard += run
-            room = self.ctl.knobs.max_line - len(self._line)
+            room = self.controller.knobs.max_line - len(self._line)
             if len(run) > room:
                 self._overflow = True
                 run = run[: max(room, 0)]
@@ -157,7 +157,7 @@ class Interpreter:
     def _drop_line(self, t: float, kind: str, why: str) -> None:
         """The partial line is discarded (noted as `kind` for `why`)."""
         if self._heard:
-            self.ctl.notes.rx(t, kind, bytes(self._heard), why)
+            self.controller.notes.rx(t, kind, bytes(self._heard), why)
             self._heard.clear()
         self._line.clear()
         self._overflow = False
@@ -169,51 +169,51 @@ class Interpreter:
         elif byte == proto.CONTROL:
             self._ff = True
         elif self.low_level:
-            self.ctl.low.feed(byte, t)
+            self.controller.low.feed(byte, t)
         elif byte == 0x0D:
             line = None if self._overflow else bytes(self._line)
             self._line.clear()
             self._overflow = False
             self._on_line(line, t)
-            self.ctl.scheduler.run_due(t)
+            self.controller.scheduler.run_due(t)
         else:
-            if self.ctl.notes.on:
+            if self.controller.notes.on:
                 self._heard.append(byte)
-            if len(self._line) >= self.ctl.knobs.max_line:
+            if len(self._line) >= self.controller.knobs.max_line:
                 self._overflow = True
             else:
                 self._line.append(byte)
 
     def _control_sequence(self, byte: int, t: float) -> None:
-        ctl = self.ctl
-        if ctl.notes.on:
+        controller = self.controller
+        if controller.notes.on:
             name = CONTROL_SEQUENCES.get(byte)
-            if byte == 0x42 and "LL COMMANDS" not in ctl.cfg.modules:
+            if byte == 0x42 and "LL COMMANDS" not in controller.cfg.modules:
                 name = None  # MS-119: discarded without the module
             summary = f"FF {byte:02X}: {name or 'unknown control sequence, discarded'} (MS-119)"
-            ctl.notes.rx(t, FRAME if name else STRAY, bytes((proto.CONTROL, byte)), summary)
+            controller.notes.rx(t, FRAME if name else STRAY, bytes((proto.CONTROL, byte)), summary)
         if byte == 0x42:  # 'B'
-            if "LL COMMANDS" in ctl.cfg.modules:
+            if "LL COMMANDS" in controller.cfg.modules:
                 self.low_level = True
                 self._drop_line(t, LOST, "partial line discarded entering low-level mode (MS-119)")
-                ctl.low.reset()
+                controller.low.reset()
         elif byte == 0x41:  # 'A'
             self.low_level = False
-            ctl.low.drop(t, LOST, "partial frame dropped leaving low-level mode (MS-119)")
+            controller.low.drop(t, LOST, "partial frame dropped leaving low-level mode (MS-119)")
         elif byte == 0x52:  # 'R'
-            ctl.power.software_reset(t)
+            controller.power.software_reset(t)
         elif byte == 0x48:  # 'H'
-            ctl.card.vb_decimals = 1
+            controller.card.vb_decimals = 1
         elif byte == 0x54:  # 'T'
-            ctl.card.vb_decimals = 0
+            controller.card.vb_decimals = 0
 
     def _on_line(self, line: bytes | None, t: float) -> None:
         pending = self._pending
         halts = pending is not None and line is not None and pending[0].haltable and self._is_halt(line)
-        if self.ctl.notes.on:
+        if self.controller.notes.on:
             self._heard.append(0x0D)
             waits = " (waits for the pending command, MS-13)" if pending is not None and not halts else ""
-            self.ctl.notes.rx(t, FRAME, bytes(self._heard), self.describe(line) + waits)
+            self.controller.notes.rx(t, FRAME, bytes(self._heard), self.describe(line) + waits)
             self._heard.clear()
         if pending is not None:
             if halts:
@@ -236,19 +236,19 @@ class Interpreter:
         return spec is not None and spec.key == "\\"
 
     def _execute(self, line: bytes | None, t: float) -> None:
-        cr_only = bool(self.ctl.card.vb_flags & 8)
+        cr_only = bool(self.controller.card.vb_flags & 8)
         result = self._dispatch(line, t)
         if isinstance(result, Pending):
             due = result.due
-            timer = None if due is None else self.ctl.scheduler.at(due, self._finish_pending)
+            timer = None if due is None else self.controller.scheduler.at(due, self._finish_pending)
             self._pending = (result, cr_only, timer, line)
         else:
             self._send(result, t, cr_only, line)
 
     def _dispatch(self, line: bytes | None, t: float) -> Reply | Pending:
-        ctl = self.ctl
+        controller = self.controller
         if line is None:
-            return ctl.error(ErrorCode.UNDEFINED)
+            return controller.error(ErrorCode.UNDEFINED)
         parsed = self._parsed.get(line)
         if parsed is None:
             parsed = self._parse(line)
@@ -256,16 +256,16 @@ class Interpreter:
                 self._parsed.clear()
             self._parsed[line] = parsed
         if parsed is BLANK:
-            ignore = ctl.knobs.empty_line_reply == "ignore"
-            return Reply(()) if ignore else ctl.error(ErrorCode.UNKNOWN_COMMAND)
+            ignore = controller.knobs.empty_line_reply == "ignore"
+            return Reply(()) if ignore else controller.error(ErrorCode.UNKNOWN_COMMAND)
         spec, items, args = parsed
         handler = self.handlers.get(spec.key) if spec is not None else None
         if spec is None or handler is None:
-            return ctl.error(ErrorCode.UNKNOWN_COMMAND)
+            return controller.error(ErrorCode.UNKNOWN_COMMAND)
         try:
             return handler(Call(spec, items, args, t))
         except CommandError as exc:
-            return ctl.error(exc.code)
+            return controller.error(exc.code)
 
     def _parse(self, line: bytes) -> Parsed:
         text = line.decode("latin-1")
@@ -274,7 +274,7 @@ class Interpreter:
         parts = proto.split_command(text)
         if parts.spec is None:
             return None, (), parts.args
-        numeric_prefix = self.ctl.knobs.number_values == "prefix"
+        numeric_prefix = self.controller.knobs.number_values == "prefix"
         return parts.spec, tuple(proto.parse_items(parts.args, numeric_prefix)), parts.args
 
     def _finish_pending(self, t: float) -> None:
@@ -299,7 +299,7 @@ class Interpreter:
             timer.cancel()
         pending.cancel(t)
         if reply:
-            self._send(self.ctl.error(ErrorCode.HALTED), t, cr_only, line)
+            self._send(self.controller.error(ErrorCode.HALTED), t, cr_only, line)
 
     def drain(self, t: float) -> None:
         while self._queue and self._pending is None and not self.silenced:
@@ -307,22 +307,22 @@ class Interpreter:
 
     def _send(self, reply: Reply, t: float, cr_only: bool, line: bytes | None) -> None:
         if reply.lines:
-            to = self.describe(line) if self.ctl.notes.on else ""
-            self.ctl.send_raw(proto.frame(reply.lines, cr_only), t, to)
+            to = self.describe(line) if self.controller.notes.on else ""
+            self.controller.send_raw(proto.frame(reply.lines, cr_only), t, to)
 
     # The calls below come from the controller's power and reset code, which runs at the latest
-    # device time (`ctl.now`): drops are noted then.
+    # device time (`controller.now`): drops are noted then.
 
     def silence(self) -> None:
         """`SP` alone: ignore all input until a power cycle (MS-113)."""
         self.silenced = True
         self._drop_queue("silent after SP (MS-113)")
-        self._drop_line(self.ctl.now, LOST, "silent after SP (MS-113)")
+        self._drop_line(self.controller.now, LOST, "silent after SP (MS-113)")
 
     def restart(self) -> None:
         """Reset and power-up: back to ASCII mode with an empty line (MS-112)."""
         self.low_level = False
-        self._drop_line(self.ctl.now, LOST, "partial line dropped by a reset (MS-112)")
+        self._drop_line(self.controller.now, LOST, "partial line dropped by a reset (MS-112)")
 
     def power_off(self) -> None:
         """Waiting lines, a half-received control sequence and the silence are gone (MS-113)."""
@@ -331,8 +331,8 @@ class Interpreter:
         self._ff = False
 
     def _drop_queue(self, why: str) -> None:
-        if self.ctl.notes.on:
+        if self.controller.notes.on:
             for line in self._queue:
                 data = b"" if line is None else line + b"\r"
-                self.ctl.notes.rx(self.ctl.now, LOST, data, f"{self.describe(line)}: {why}")
+                self.controller.notes.rx(self.controller.now, LOST, data, f"{self.describe(line)}: {why}")
         self._queue.clear()

@@ -21,7 +21,7 @@ TENTHS_PER_MM = 10000
 DEFAULT_INCREMENT = 100
 
 
-class LowLevelHost(Protocol):
+class LowLevelOwner(Protocol):
     """All low-level mode uses of its controller."""
 
     @property
@@ -46,32 +46,34 @@ class LowLevelHost(Protocol):
 
 
 class LowLevel:
-    def __init__(self, ctl: LowLevelHost) -> None:
-        self.ctl = ctl
+    def __init__(self, controller: LowLevelOwner) -> None:
+        self.controller = controller
         self.decoder = LLFrameDecoder()
         self.increments: dict[str, int] = {}
         #: bytes of the frame being decoded (while explaining)
         self._heard = bytearray()
 
     def reset(self) -> None:
-        self.decoder.axis_ids = {a.s.ll_id for a in self.ctl.axes}
+        self.decoder.axis_ids = {a.s.ll_id for a in self.controller.axes}
         self.decoder.reset()
         self._heard.clear()
-        self.increments = {a.hw_letter: DEFAULT_INCREMENT for a in self.ctl.axes}
+        self.increments = {a.hw_letter: DEFAULT_INCREMENT for a in self.controller.axes}
 
     def drop(self, t: float, kind: str, why: str) -> None:
         """The frame being decoded is discarded (noted as `kind` for `why`)."""
         self.decoder.reset()
         if self._heard:
-            self.ctl.notes.rx(t, kind, bytes(self._heard), why)
+            self.controller.notes.rx(t, kind, bytes(self._heard), why)
             self._heard.clear()
 
     def feed(self, byte: int, t: float) -> None:
         frame = self.decoder.feed(byte)
-        if self.ctl.notes.on:
+        if self.controller.notes.on:
             self._heard.append(byte)
             if frame is not None:
-                self.ctl.notes.rx(t, FRAME if frame.known else STRAY, bytes(self._heard), describe(frame))
+                self.controller.notes.rx(
+                    t, FRAME if frame.known else STRAY, bytes(self._heard), describe(frame)
+                )
                 self._heard.clear()
         if frame is not None and frame.known:
             self.execute(frame, t)
@@ -80,36 +82,36 @@ class LowLevel:
         return round_half_away(axis.user_mm(t) * TENTHS_PER_MM)
 
     def execute(self, frame: LLFrame, t: float) -> None:
-        axis = next((a for a in self.ctl.axes if a.s.ll_id == frame.axis_id), None)
+        axis = next((a for a in self.controller.axes if a.s.ll_id == frame.axis_id), None)
         if axis is None:
             return
-        ctl = self.ctl
+        controller = self.controller
         command = LLCommand(frame.command)
-        status = status_byte(axis, t, ctl.knobs.status_bit5_up_is_one, low_level=True)
-        to = describe(frame) if ctl.notes.on else ""
+        status = status_byte(axis, t, controller.knobs.status_bit5_up_is_one, low_level=True)
+        to = describe(frame) if controller.notes.on else ""
         if command is LLCommand.BUSY:
-            ctl.send_raw(b"B" if axis.busy(t) else b"b", t, to)
+            controller.send_raw(b"B" if axis.busy(t) else b"b", t, to)
         elif command is LLCommand.POSITION:
-            ctl.send_raw(encode_int24(self._tenths(axis, t)), t, to)
+            controller.send_raw(encode_int24(self._tenths(axis, t)), t, to)
         elif command is LLCommand.POSITION_STATUS:
-            ctl.send_raw(encode_int24(self._tenths(axis, t)) + bytes([status]), t, to)
+            controller.send_raw(encode_int24(self._tenths(axis, t)) + bytes([status]), t, to)
         elif command is LLCommand.STATUS:
-            ctl.send_raw(bytes([status]), t, to)
+            controller.send_raw(bytes([status]), t, to)
         elif command is LLCommand.READ_INCREMENT:
-            ctl.send_raw(encode_int24(self.increments[axis.hw_letter]), t, to)
+            controller.send_raw(encode_int24(self.increments[axis.hw_letter]), t, to)
         elif command is LLCommand.START_MOTOR:
-            ctl.enable_motor(axis, t)
+            controller.enable_motor(axis, t)
         elif command in (LLCommand.JOYSTICK_ON, LLCommand.JOYSTICK_OFF):
-            ctl.set_manual_enabled(axis, command is LLCommand.JOYSTICK_ON, t)
+            controller.set_manual_enabled(axis, command is LLCommand.JOYSTICK_ON, t)
         elif command is LLCommand.WRITE_INCREMENT:
             self.increments[axis.hw_letter] = decode_int24(frame.data)
         elif command is LLCommand.MOVE_TO:
             goal = axis.counts_of(decode_int24(frame.data) / TENTHS_PER_MM)
-            ctl.start_moves([(axis, goal)], t)
+            controller.start_moves([(axis, goal)], t)
         elif command in (LLCommand.STEP_UP, LLCommand.STEP_DOWN):
             sign = 1 if command is LLCommand.STEP_UP else -1
             step_mm = sign * self.increments[axis.hw_letter] / TENTHS_PER_MM
-            ctl.start_moves([(axis, ctl.relative_goal(axis, step_mm, t))], t)
+            controller.start_moves([(axis, controller.relative_goal(axis, step_mm, t))], t)
 
 
 def describe(frame: LLFrame) -> str:

@@ -3,12 +3,12 @@
 This file wires the parts together and owns what they share: time (the scheduler), the axes and the
 move groups with their completion effects, manual inputs, output and the host's line settings. The
 parts are collaborators, each given the controller as a narrow Protocol of what it uses, declared in
-its own file: the command line in interpreter.py (`InterpreterHost`), power, reset and flash in
-power.py (`PowerHost`), the control channel in surface.py (`Surfaced`), command handlers in
-commands/ (`CommandsHost`), low-level frames in lowlevel.py (`LowLevelHost`), reports in info.py
-(`Reported`), buttons in buttons.py (`ButtonsHost`), TTL in ttl.py (`TtlHost`), the serial line in
-serial_line.py (`LineOwner`). Axes see the controller as an `AxisHost` (axis_host.py) and firmware
-modules as a `ModuleHost` (modules/host.py); modules are reached only through `self.modules`, a
+its own file: the command line in interpreter.py (`InterpreterOwner`), power, reset and flash in
+power.py (`PowerOwner`), the control channel in controls.py (`ControlsOwner`), command handlers in
+commands/ (`CommandsOwner`), low-level frames in lowlevel.py (`LowLevelOwner`), reports in info.py
+(`Reported`), buttons in buttons.py (`ButtonsOwner`), TTL in ttl.py (`TtlOwner`), the serial line in
+serial_line.py (`LineOwner`). Axes see the controller as an `AxisOwner` (axis_owner.py) and firmware
+modules as a `ModuleOwner` (modules/owner.py); modules are reached only through `self.modules`, a
 ModuleSet (modules/moduleset.py), by events and capability queries.
 
 While explaining (a traffic log is kept) the interpreter and the low-level decoder note each unit of
@@ -29,9 +29,9 @@ from emulator.device import (
     REPLY,
     UNSOLICITED,
     Device,
+    DeviceServices,
     Emission,
     HostLine,
-    HostServices,
     LineSettings,
     ModemLines,
 )
@@ -40,6 +40,7 @@ from emulator.devices.ms2000.axis import Axis
 from emulator.devices.ms2000.buttons import TTL_ENABLE_BIT, Buttons
 from emulator.devices.ms2000.calls import Rendered, Reply
 from emulator.devices.ms2000.commands import BaseCommands
+from emulator.devices.ms2000.controls import Controls
 from emulator.devices.ms2000.interpreter import Interpreter
 from emulator.devices.ms2000.lowlevel import LowLevel
 from emulator.devices.ms2000.modules import Handler, channels_of
@@ -52,7 +53,6 @@ from emulator.devices.ms2000.scheduler import Scheduler, Timer
 from emulator.devices.ms2000.schema import Ms2000Config, baud_of
 from emulator.devices.ms2000.serial_line import SerialLine, garble
 from emulator.devices.ms2000.settings import CardAuto
-from emulator.devices.ms2000.surface import ControlSurface
 from emulator.devices.ms2000.ttl import BASE_OUT_MODES, Ttl
 from emulator.profiles.profile import Profile
 from protocols import ms2000 as proto
@@ -68,7 +68,9 @@ DEAD_BAND = 0.02
 
 
 class Ms2000Device(Device):
-    def __init__(self, name: str, profile: Profile[Ms2000Config], now: float, services: HostServices) -> None:
+    def __init__(
+        self, name: str, profile: Profile[Ms2000Config], now: float, services: DeviceServices
+    ) -> None:
         super().__init__(name, profile, now, services)
         self.cfg = profile.config
         self.knobs = self.cfg.knobs
@@ -99,8 +101,8 @@ class Ms2000Device(Device):
         self.shapes = dict(proto.QUERY_SHAPES)
         self.shapes.update(self.modules.query_shapes())
         self.interpreter = Interpreter(self, self.modules.guarded(handlers))
-        self.finish_pending = self.interpreter.release  # ModuleHost: a module's late reply (MS-33)
-        self.surface = ControlSurface(self)
+        self.finish_pending = self.interpreter.release  # ModuleOwner: a module's late reply (MS-33)
+        self.controls = Controls(self)
         self.error_log: deque[int] = deque(maxlen=ERROR_LOG_SIZE)
         self.trajectory_log: deque[str] = deque(maxlen=TRAJECTORY_SIZE)
         self.moves = 0
@@ -137,7 +139,7 @@ class Ms2000Device(Device):
     def push_event(self, event: dict[str, Any]) -> None:
         self._events.append(event)
 
-    # ---- ModuleHost: the modules among themselves (events.py, capabilities.py) -------------------
+    # ---- ModuleOwner: the modules among themselves (events.py, capabilities.py) -------------------
 
     def emit(self, event: Event) -> None:
         self.modules.emit(event)
@@ -195,18 +197,18 @@ class Ms2000Device(Device):
     # ---- Device contract: control channel, non-volatile memory ----------------------------------
 
     def observe(self, name: str, now: float) -> Any:
-        return self.surface.observe(name, now)
+        return self.controls.observe(name, now)
 
     def snapshot(self, now: float) -> dict[str, Any]:
-        return self.surface.snapshot(now)
+        return self.controls.snapshot(now)
 
     def control_input(self, name: str, params: dict[str, Any], now: float) -> Any:
-        result = self.surface.control_input(name, params, now)
+        result = self.controls.control_input(name, params, now)
         self.scheduler.run_due(now)
         return result
 
     def control_names(self) -> dict[str, list[str]]:
-        return self.surface.names()
+        return self.controls.names()
 
     def shut_down(self, now: float) -> None:
         self.power.save_resting_positions(now)

@@ -13,7 +13,7 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from typing import TYPE_CHECKING, Any, Protocol
 
-from emulator.device import ControlError, HostServices
+from emulator.device import ControlError, DeviceServices
 from emulator.devices.ms2000.activity import LOWER, UPPER
 from emulator.devices.ms2000.calls import Pending, Reply
 from emulator.devices.ms2000.flash import Flash
@@ -52,7 +52,7 @@ IDENTITY_MISMATCH_CODE = 55
 REPR_LIMIT = 40
 
 
-class PowerHost(Protocol):
+class PowerOwner(Protocol):
     """All power, reset and flash use of their controller: the parts they bring back to idle, and the
     controller state they restore or clear (the attributes)."""
 
@@ -76,7 +76,7 @@ class PowerHost(Protocol):
     def log(self) -> logging.Logger: ...
 
     @property
-    def services(self) -> HostServices:
+    def services(self) -> DeviceServices:
         """The flash store."""
 
     @property
@@ -124,11 +124,11 @@ class PowerHost(Protocol):
 class Power:
     """The controller's power states and its flash; works on the controller's axes and settings."""
 
-    def __init__(self, ctl: PowerHost) -> None:
-        self.ctl = ctl
-        cfg = ctl.cfg
+    def __init__(self, controller: PowerOwner) -> None:
+        self.controller = controller
+        cfg = controller.cfg
         identity = {"build": cfg.build_name, "version": cfg.version, "axes": list(cfg.motor_axes)}
-        self.flash = Flash(ctl.services, cfg.device_id, identity, self.storage_result)
+        self.flash = Flash(controller.services, cfg.device_id, identity, self.storage_result)
         #: positions may differ from the flash's: checked at the end of the current model call
         self.positions_dirty = False
         self._saved_positions: tuple[int, ...] | None = None
@@ -142,7 +142,7 @@ class Power:
     # ---- factory values -----------------------------------------------------------------------
 
     def factory_axis(self, letter: str) -> AxisSettings:
-        a = self.ctl.cfg.axes[letter]
+        a = self.controller.cfg.axes[letter]
         return AxisSettings(
             speed=a.speed_mm_s,
             accel_ms=a.accel_ms,
@@ -169,47 +169,47 @@ class Power:
         )
 
     def factory_auto(self, letter: str) -> AxisAuto:
-        a = self.ctl.cfg.axes[letter]
+        a = self.controller.cfg.axes[letter]
         return AxisAuto(a.soft_lower_mm, a.soft_upper_mm, a.home_mm, a.aa)
 
     def factory_card(self) -> CardSettings:
-        return CardSettings(stop_bits=int(self.ctl.cfg.line.stop_bits))
+        return CardSettings(stop_bits=int(self.controller.cfg.line.stop_bits))
 
     # ---- power-up and reset (MS-112) ----------------------------------------------------------
 
     def power_up(self, t: float, cold: bool) -> None:
-        ctl = self.ctl
+        controller = self.controller
         flash = self.flash
         same = flash.load()
         if flash.pending_factory:
             flash.data.pop("saved", None)
             flash.write(pending_factory=False)
-        ctl.baud = baud_of(ctl.dip["sw4"], ctl.dip["sw5"])
+        controller.baud = baud_of(controller.dip["sw4"], controller.dip["sw5"])
         if cold:
             physical = self._section(flash.data, "physical") or {}
-            for axis in ctl.axes:
+            for axis in controller.axes:
                 counts = self._number(physical, axis.hw_letter, "physical")
                 if counts is not None:
                     axis.traj = axis.traj.rest(t, counts)
         self._restore_settings()
         positions = self._section(flash.data, "positions") or {}  # null after SP X=1
-        for axis in ctl.axes:
+        for axis in controller.axes:
             saved = self._number(positions, axis.hw_letter, "positions")
             axis.origin = 0.0
             here = axis.user_mm(t)
             axis.origin = here - saved if saved is not None else here
         self._restart(t)
         if not same:
-            ctl.log_error(IDENTITY_MISMATCH_CODE)
+            controller.log_error(IDENTITY_MISMATCH_CODE)
 
     def _restore_settings(self) -> None:
-        ctl = self.ctl
+        controller = self.controller
         saved = self._section(self.flash.data, "saved") or {}
         auto = self._section(self.flash.data, "auto") or {}
         saved_axes = self._section(saved, "axes", "saved") or {}
         auto_axes = self._section(auto, "axes", "auto") or {}
         reject = self._unusable
-        for axis in ctl.axes:
+        for axis in controller.axes:
             letter = axis.hw_letter
             axis.s = from_plain(
                 self.factory_axis(letter), saved_axes.get(letter), f"saved.axes.{letter}", reject
@@ -218,10 +218,10 @@ class Power:
                 self.factory_auto(letter), auto_axes.get(letter), f"auto.axes.{letter}", reject
             )
             axis.letter = chr(axis.s.rename) if axis.s.rename else letter
-        ctl.card = from_plain(self.factory_card(), saved.get("card"), "saved.card", reject)
-        ctl.card_auto = from_plain(CardAuto(), auto.get("card"), "auto.card", reject)
-        ctl.modules.restore(self._section(saved, "modules", "saved") or {}, reject)
-        ctl.modules.restore_auto(self._section(auto, "modules", "auto") or {}, reject)
+        controller.card = from_plain(self.factory_card(), saved.get("card"), "saved.card", reject)
+        controller.card_auto = from_plain(CardAuto(), auto.get("card"), "auto.card", reject)
+        controller.modules.restore(self._section(saved, "modules", "saved") or {}, reject)
+        controller.modules.restore_auto(self._section(auto, "modules", "auto") or {}, reject)
 
     def _section(self, mapping: dict[str, Any], key: str, within: str = "") -> dict[str, Any] | None:
         """The stored mapping `mapping[key]`; None when absent or (reported) not a mapping."""
@@ -250,14 +250,14 @@ class Power:
         text = repr(value)
         if len(text) > REPR_LIMIT:
             text = text[: REPR_LIMIT - 3] + "..."
-        self.ctl.log.warning(
-            "%s: stored %s = %s cannot be used; keeping the factory value", self.ctl.name, path, text
+        self.controller.log.warning(
+            "%s: stored %s = %s cannot be used; keeping the factory value", self.controller.name, path, text
         )
 
     def _restart(self, t: float) -> None:
         """What power-up and reset share: motion stopped, volatile state cleared, clocks restarted."""
-        ctl = self.ctl
-        for axis in ctl.axes:
+        controller = self.controller
+        for axis in controller.axes:
             axis.power_off(t)
             axis.enabled = True
             axis.group = None
@@ -265,50 +265,50 @@ class Power:
             axis.target = round_half_away(axis.pos(t))
             axis.reset_extremes(t)
             axis.ensync_mm = None
-        ctl.ensync_level = 0
-        ctl.error_log.clear()
-        ctl.trajectory_log.clear()
-        ctl.user_counter = 0
-        ctl.lcd_text = None
-        ctl.interpreter.restart()
-        ctl.last_relative = []
-        ctl.buttons.reset()
-        ctl.low.reset()
-        ctl.booted_at = t
+        controller.ensync_level = 0
+        controller.error_log.clear()
+        controller.trajectory_log.clear()
+        controller.user_counter = 0
+        controller.lcd_text = None
+        controller.interpreter.restart()
+        controller.last_relative = []
+        controller.buttons.reset()
+        controller.low.reset()
+        controller.booted_at = t
         if self._clock_timer is not None:
             self._clock_timer.cancel()
-        self._clock_timer = ctl.at(t + CLOCK_MARK_S, self._clock_mark)
-        ctl.modules.emit(Reset(t))
-        ctl.ttl.reset(t)
+        self._clock_timer = controller.at(t + CLOCK_MARK_S, self._clock_mark)
+        controller.modules.emit(Reset(t))
+        controller.ttl.reset(t)
         # what the flash holds counts as saved: a reset alone writes nothing (MS-112)
         self._saved_positions = self._position_key()
         self.positions_dirty = False
 
     def _clock_mark(self, t: float) -> None:
-        if self.ctl.knobs.error_log_clock_marks:
-            self.ctl.log_error(CLOCK_MARK_CODE)
-        self._clock_timer = self.ctl.at(t + CLOCK_MARK_S, self._clock_mark)
+        if self.controller.knobs.error_log_clock_marks:
+            self.controller.log_error(CLOCK_MARK_CODE)
+        self._clock_timer = self.controller.at(t + CLOCK_MARK_S, self._clock_mark)
 
     def software_reset(self, t: float) -> None:
         """`~` and 0xFF 'R' (MS-112): saved settings back, positions 0, limits keep their place."""
-        ctl = self.ctl
-        ctl.interpreter.cancel_pending(t, reply=False)
-        for axis in ctl.axes:
+        controller = self.controller
+        controller.interpreter.cancel_pending(t, reply=False)
+        for axis in controller.axes:
             axis.stop(t)
         self._restore_settings()
-        for axis in ctl.axes:
+        for axis in controller.axes:
             axis.origin = 0.0
             axis.origin = axis.user_mm(t)
         self._restart(t)
         # lines that waited behind a blocking command the reset cancelled still run, in order (MS-13)
-        ctl.interpreter.drain(t)
+        controller.interpreter.drain(t)
 
     def power_cycle(self, t: float) -> None:
         """Power off (positions saved unless `SP X=1`) and on (MS-112)."""
-        ctl = self.ctl
-        ctl.interpreter.cancel_pending(t, reply=False)
-        ctl.interpreter.power_off()
-        for axis in ctl.axes:
+        controller = self.controller
+        controller.interpreter.cancel_pending(t, reply=False)
+        controller.interpreter.power_off()
+        for axis in controller.axes:
             axis.stop(t)
         self.save_positions(t)
         self.power_up(t, cold=False)
@@ -316,14 +316,17 @@ class Power:
     # ---- non-volatile memory (MS-110, MS-111) -------------------------------------------------
 
     def _position_key(self) -> tuple[int, ...]:
-        t = self.ctl.now
-        axes = self.ctl.axes
-        return (self.ctl.card.inhibit_position_save, *(round_half_away(a.units(t) * 1000) for a in axes))
+        t = self.controller.now
+        axes = self.controller.axes
+        return (
+            self.controller.card.inhibit_position_save,
+            *(round_half_away(a.units(t) * 1000) for a in axes),
+        )
 
     def save_positions(self, t: float) -> None:
-        axes = self.ctl.axes
+        axes = self.controller.axes
         physical = {a.hw_letter: a.pos(t) for a in axes}
-        inhibit = self.ctl.card.inhibit_position_save
+        inhibit = self.controller.card.inhibit_position_save
         positions = None if inhibit else {a.hw_letter: a.user_mm(t) for a in axes}
         self.flash.write(physical=physical, positions=positions)
         self._saved_positions = self._position_key()
@@ -338,7 +341,7 @@ class Power:
             return
         self._flagged_at = t
         if self._position_timer is None:
-            self._position_timer = self.ctl.at(t + POSITION_SAVE_DELAY_S, self._save_if_rested)
+            self._position_timer = self.controller.at(t + POSITION_SAVE_DELAY_S, self._save_if_rested)
 
     def save_resting_positions(self, t: float) -> None:
         """At shutdown: what the waiting check would save, saved now (a moving stage is not)."""
@@ -351,7 +354,7 @@ class Power:
         self._position_timer = None
         rested_until = self._flagged_at + POSITION_SAVE_DELAY_S
         if t < rested_until and not self._moving(t):
-            self._position_timer = self.ctl.at(rested_until, self._save_if_rested)
+            self._position_timer = self.controller.at(rested_until, self._save_if_rested)
         else:
             self._save_at_rest(t)
 
@@ -361,15 +364,15 @@ class Power:
             self.save_positions(t)
 
     def _moving(self, t: float) -> bool:
-        return any(a.traj.moving(t) for a in self.ctl.axes)
+        return any(a.traj.moving(t) for a in self.controller.axes)
 
     def save_settings(self) -> None:
         """SS Z (MS-110, MS-111)."""
-        ctl = self.ctl
+        controller = self.controller
         saved = {
-            "axes": {a.hw_letter: to_plain(a.s) for a in ctl.axes},
-            "card": to_plain(ctl.card),
-            "modules": ctl.modules.save(),
+            "axes": {a.hw_letter: to_plain(a.s) for a in controller.axes},
+            "card": to_plain(controller.card),
+            "modules": controller.modules.save(),
         }
         self.flash.write(saved=saved)
 
@@ -382,23 +385,23 @@ class Power:
         written, so a host that saw `:A` may kill the emulator (MS-111). A store writing in the
         background makes it wait; HALT cannot cut a save short, lines behind it wait (MS-13)."""
         if self.flash.settled:
-            return self.ctl.ack()
+            return self.controller.ack()
         self._ack_waits = True
         return Pending(None, self._settled_ack, cancel=self._stop_waiting, haltable=False)
 
     def _settled_ack(self, t: float) -> Reply:
         self._stop_waiting(t)
-        return self.ctl.ack()
+        return self.controller.ack()
 
     def _stop_waiting(self, t: float) -> None:
         self._ack_waits = False
 
     def save_auto(self) -> None:
         """Settings remembered as soon as they change (SL, SU, HM, AA, CCA X, BCA, DLED maxima)."""
-        ctl = self.ctl
-        axes = {a.hw_letter: to_plain(a.auto) for a in ctl.axes}
-        modules = ctl.modules.save_auto()
-        self.flash.write(auto={"axes": axes, "card": to_plain(ctl.card_auto), "modules": modules})
+        controller = self.controller
+        axes = {a.hw_letter: to_plain(a.auto) for a in controller.axes}
+        modules = controller.modules.save_auto()
+        self.flash.write(auto={"axes": axes, "card": to_plain(controller.card_auto), "modules": modules})
 
     def forget(self) -> None:
         """Erase the device's flash (a factory-fresh controller), e.g. for a host's `reset` op."""
@@ -406,7 +409,7 @@ class Power:
             self.flash.erase()
         except StorageError as failure:
             raise ControlError(
-                f"{self.ctl.name}: factory reset refused, saved settings kept: {failure}"
+                f"{self.controller.name}: factory reset refused, saved settings kept: {failure}"
             ) from failure
 
     def storage_result(self, failure: StorageError | None) -> None:
@@ -414,19 +417,19 @@ class Power:
         its in-memory flash and still acks `SS`, as a real one does; a failure is flagged
         (`storage_error`, shown by `ctl list`) and pushed as an event, a successful save clears it.
         A settled store releases an `SS` waiting for it."""
-        ctl = self.ctl
+        controller = self.controller
         if failure is None:
-            ctl.storage_error = None
+            controller.storage_error = None
         else:
-            ctl.storage_error = str(failure)
-            ctl.push_event(
+            controller.storage_error = str(failure)
+            controller.push_event(
                 {
                     "ev": "storage_error",
-                    "t": ctl.now,
+                    "t": controller.now,
                     "op": failure.op,
                     "path": str(failure.path),
                     "error": failure.reason,
                 }
             )
         if self.flash.settled and self._ack_waits:  # not another command's pending reply
-            ctl.interpreter.release(ctl.now)
+            controller.interpreter.release(controller.now)

@@ -5,7 +5,7 @@ plug-ins add their own fields (top level and `knobs`), so a new module or a new 
 file plus a small profile YAML that `extends: ms2000`. Those fields are known only once the modules
 have registered (a test registers one of its own), so `SCHEMA` is `Ms2000Config` extended at run time
 (`build_schema`): the controller reads the static fields typed, a module its own ones untyped
-(`ModuleHost.cfg`, `ModuleHost.knobs`).
+(`ModuleOwner.cfg`, `ModuleOwner.knobs`).
 
 Every number has a finite range, far beyond any ASI stage yet small enough that encoder counts stay
 exact in floating point: pitch up to `MAX_PITCH_MM`, encoder resolution up to `MAX_COUNTS_PER_MM`

@@ -48,8 +48,8 @@ class LineOwner(Protocol):
 
 
 class SerialLine:
-    def __init__(self, ctl: LineOwner) -> None:
-        self.ctl = ctl
+    def __init__(self, controller: LineOwner) -> None:
+        self.controller = controller
         self._seen: HostLine | None = None
         self._declared: dict[str, Any] = {}
         self._host: HostLine | None = None
@@ -59,7 +59,7 @@ class SerialLine:
         self._garbling = False
 
     def own(self) -> LineSettings:
-        key = (self.ctl.baud, self.ctl.card.stop_bits)
+        key = (self.controller.baud, self.controller.card.stop_bits)
         if key != self._own_key:
             self._own_key = key
             self._own = LineSettings(key[0], 8, "none", key[1], False, False)
@@ -96,7 +96,7 @@ class SerialLine:
         return self._garbling
 
     def garbles_for(self, host: HostLine | None) -> bool:
-        if host is None or self.ctl.knobs.line_mismatch != "garble":
+        if host is None or self.controller.knobs.line_mismatch != "garble":
             return False
         own = self.own()
         return any(getattr(host, n) is not None and getattr(host, n) != getattr(own, n) for n in _GARBLING)

@@ -23,7 +23,7 @@ BASE_OUT_MODES = frozenset({0, 1, 2})
 PULSE_MODES = frozenset({2, 8})
 
 
-class TtlHost(Protocol):
+class TtlOwner(Protocol):
     """All the TTL lines use of their controller."""
 
     @property
@@ -45,8 +45,8 @@ class TtlHost(Protocol):
 
 
 class Ttl:
-    def __init__(self, ctl: TtlHost) -> None:
-        self.ctl = ctl
+    def __init__(self, controller: TtlOwner) -> None:
+        self.controller = controller
         self.in0 = 0
         self.in1 = 0
         self.raw = 0
@@ -61,15 +61,15 @@ class Ttl:
         self.apply_mode(t)
 
     def effective(self) -> int:
-        driven = self.ctl.modules.out0_level(self.ctl.card.ttl_out)
+        driven = self.controller.modules.out0_level(self.controller.card.ttl_out)
         level = self.raw if driven is None else driven
-        return level ^ (1 if self.ctl.card.ttl_polarity == -1 else 0)
+        return level ^ (1 if self.controller.card.ttl_polarity == -1 else 0)
 
     def refresh(self, t: float) -> None:
         level = self.effective()
         if level != self.level:
             self.level = level
-            self.ctl.push_event({"ev": "ttl_out0", "level": level, "t": t})
+            self.controller.push_event({"ev": "ttl_out0", "level": level, "t": t})
 
     def set_raw(self, level: int, t: float) -> None:
         self.raw = level
@@ -77,16 +77,16 @@ class Ttl:
 
     def apply_mode(self, t: float) -> None:
         """`TTL Y` or `TTL F` changed: mode 1 drives high, others start low."""
-        self.set_raw(1 if self.ctl.card.ttl_out == 1 else 0, t)
+        self.set_raw(1 if self.controller.card.ttl_out == 1 else 0, t)
 
     def pulse(self, t: float) -> None:
         """End-of-move pulse in OUT0 mode 2 (MS-91)."""
-        if self.ctl.card.ttl_out not in PULSE_MODES:
+        if self.controller.card.ttl_out not in PULSE_MODES:
             return
         if self._pulse is not None:
             self._pulse.cancel()
         self.set_raw(1, t)
-        self._pulse = self.ctl.at(t + self.ctl.card.rt_pulse_ms / 1000, self._pulse_end)
+        self._pulse = self.controller.at(t + self.controller.card.rt_pulse_ms / 1000, self._pulse_end)
 
     def _pulse_end(self, t: float) -> None:
         self._pulse = None
@@ -97,7 +97,7 @@ class Ttl:
         self.set_raw(1 - self.raw, t)
 
     def pwm(self) -> float:
-        duty = self.ctl.modules.out0_pwm(self.ctl.card.ttl_out)
+        duty = self.controller.modules.out0_pwm(self.controller.card.ttl_out)
         return 0.0 if duty is None else duty
 
     # ---- inputs --------------------------------------------------------------------------------
@@ -107,19 +107,19 @@ class Ttl:
         falling = self.in0 and not level
         self.in0 = level
         if rising:
-            self.ctl.in0_edge(t)
-        elif falling and self.ctl.card.button_enable & TTL_ENABLE_BIT:
-            self.ctl.modules.in0_release(self.ctl.card.ttl_in, t)  # level modes (MS-CRISP-7)
+            self.controller.in0_edge(t)
+        elif falling and self.controller.card.button_enable & TTL_ENABLE_BIT:
+            self.controller.modules.in0_release(self.controller.card.ttl_in, t)  # level modes (MS-CRISP-7)
 
     def pulse_in0(self, ms: float, t: float) -> None:
         if self._in0_fall is not None:
             self._in0_fall.cancel()
         self.set_in0(1, t)
-        self._in0_fall = self.ctl.at(t + ms / 1000, lambda due: self.set_in0(0, due))
+        self._in0_fall = self.controller.at(t + ms / 1000, lambda due: self.set_in0(0, due))
 
     def set_in1(self, level: int, t: float) -> None:
         if level == self.in1:
             return
         self.in1 = level
-        if self.ctl.card.vb_flags & 4:
-            self.ctl.unsolicited("H" if level else "L", t)
+        if self.controller.card.vb_flags & 4:
+            self.controller.unsolicited("H" if level else "L", t)

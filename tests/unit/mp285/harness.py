@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from emulator.device import HostLine, HostServices
+from emulator.device import DeviceServices, HostLine
 from emulator.devices.mp285.model import Mp285Device
 from emulator.profiles.profile import load_profile
 from emulator.profiles.registry import family
@@ -26,7 +26,7 @@ class Bench(ModelHarness[Mp285Device]):
         loaded = load_profile(profile, overrides)
 
         def make(now: float) -> Mp285Device:
-            device = family("mp285").factory("mp285-0", loaded, now, HostServices())  # type: ignore[union-attr]
+            device = family("mp285").factory("mp285-0", loaded, now, DeviceServices())  # type: ignore[union-attr]
             assert isinstance(device, Mp285Device)
             return device
 

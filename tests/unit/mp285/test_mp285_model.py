@@ -1,4 +1,4 @@
-"""The MP-285 device model beyond the test vectors: §7 details, programs, line layer, control channel."""
+"""The MP-285 device model beyond the test vectors: §7 details, programs, serial line, control channel."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import json
 
 import pytest
 
-from emulator.device import ControlError, HostServices, LineSettings
+from emulator.device import ControlError, DeviceServices, LineSettings
 from emulator.profiles.profile import load_profile
 from emulator.profiles.registry import family
 from protocols.mp285 import Download, Execute, Move, Vector, encode_position
@@ -40,7 +40,7 @@ def long_move(knobs: dict | None = None, profile: str = "mp285", host: object = 
 def test_outputs_are_stamped_with_their_due_instant_not_the_call_time() -> None:
     """device.py: a late `advance` still stamps the final reply at T_m + settle."""
     profile = load_profile("mp285")
-    device = family("mp285").factory("d", profile, 0.0, HostServices())  # type: ignore[union-attr]
+    device = family("mp285").factory("d", profile, 0.0, DeviceServices())  # type: ignore[union-attr]
     device.receive(TEN_UM, 0.0)
     assert device.next_deadline() == pytest.approx(0.2)
     device.advance(5.0)
@@ -249,7 +249,7 @@ def test_reset_abandons_a_paused_program() -> None:
     assert bench.snapshot()["state"] == "IDLE"
 
 
-# ---- line layer --------------------------------------------------------------------------------------
+# ---- serial line -------------------------------------------------------------------------------------
 
 
 def test_garbled_traffic_both_ways_with_exact_times() -> None:

@@ -9,7 +9,7 @@ from typing import Any
 
 import pytest
 
-from emulator.device import HostServices
+from emulator.device import DeviceServices
 from emulator.devices.ms2000.model import Ms2000Device
 from emulator.profiles.profile import Profile, load_profile
 from tests.support.model_harness import ModelHarness
@@ -24,12 +24,12 @@ class Harness(ModelHarness[Ms2000Device]):
         overrides: dict[str, Any] | None = None,
         state_dir: Path | None = None,
         t0: float = 0.0,
-        services: HostServices | None = None,
+        services: DeviceServices | None = None,
     ) -> None:
         self.profile = profile if isinstance(profile, Profile) else load_profile(profile, overrides)
-        #: a state directory is written at once (HostServices' default stores); `services` can
+        #: a state directory is written at once (DeviceServices' default stores); `services` can
         #: hand in any store instead, e.g. one that writes only when the test says
-        self.services = services or HostServices(state_dir)
+        self.services = services or DeviceServices(state_dir)
 
         def make(now: float) -> Ms2000Device:
             return Ms2000Device("dut", self.profile, now, self.services)

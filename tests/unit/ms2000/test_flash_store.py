@@ -11,7 +11,7 @@ from typing import Any
 
 import pytest
 
-from emulator.device import HostServices, StoreReport
+from emulator.device import DeviceServices, StoreReport
 from emulator.devices.ms2000.power import POSITION_SAVE_DELAY_S
 from emulator.storage.nvstore import StorageError
 from tests.unit.ms2000.conftest import Harness
@@ -62,7 +62,7 @@ def store() -> HeldStore:
 
 @pytest.fixture
 def held(store: HeldStore) -> Harness:
-    return Harness(services=HostServices(stores=store.open))
+    return Harness(services=DeviceServices(stores=store.open))
 
 
 def settle(h: Harness, store: HeldStore, failure: StorageError | None = None) -> bytes:

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from emulator.device import ControlError, HostServices, LineSettings
+from emulator.device import ControlError, DeviceServices, LineSettings
 from emulator.devices.ms2000.model import Ms2000Device
 from emulator.devices.ms2000.power import POSITION_SAVE_DELAY_S
 from emulator.hosting.clock import ManualClock
@@ -236,7 +236,7 @@ def test_reset_whose_erase_fails_is_refused_and_keeps_the_device_ms111(
     model and its saved settings, and the control request fails (`ctl reset` exits 1)."""
     profile = Harness().profile
     runner = DeviceRunner(
-        lambda now: Ms2000Device("dut", profile, now, HostServices(tmp_path)), ManualClock()
+        lambda now: Ms2000Device("dut", profile, now, DeviceServices(tmp_path)), ManualClock()
     )
     port = MemoryTransport()
     runner.attach_transport("main", port, "fast")

@@ -8,12 +8,12 @@ import logging
 
 import pytest
 
-from emulator.device import HostServices, LineSettings
+from emulator.device import DeviceServices, LineSettings
 from emulator.devices.ms2000.model import Ms2000Device
 from emulator.hosting.clock import ManualClock
 from emulator.hosting.runner import DeviceRunner
-from emulator.line import REALISTIC, char_time
 from emulator.profiles.profile import load_profile
+from emulator.wire_time import REALISTIC, char_time
 from tests.support.memory_transport import MemoryTransport
 
 CHAR = char_time(9600)
@@ -23,7 +23,7 @@ def hosted(timing: str = REALISTIC) -> tuple[MemoryTransport, ManualClock]:
     """A runner with the model on a memory port (the port's sink keeps the runner alive)."""
     clock = ManualClock()
     profile = load_profile("ms2000")
-    runner = DeviceRunner(lambda now: Ms2000Device("dut", profile, now, HostServices(None)), clock)
+    runner = DeviceRunner(lambda now: Ms2000Device("dut", profile, now, DeviceServices(None)), clock)
     port = MemoryTransport()
     runner.attach_transport("main", port, timing)
     port.attach(LineSettings(baud=9600, stop_bits=1))

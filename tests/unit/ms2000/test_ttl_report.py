@@ -9,15 +9,15 @@ from pathlib import Path
 
 import pytest
 
-from emulator.device import LOST, MAIN, HostServices, LineSettings
+from emulator.device import LOST, MAIN, DeviceServices, LineSettings
 from emulator.devices.ms2000.model import Ms2000Device
 from emulator.devices.ms2000.modules.ttl_report import AXIS_READ_S, FRAME_OVERHEAD_S, LATCH_S
 from emulator.hosting.clock import ManualClock
 from emulator.hosting.rig import load_rig, rig_from_profiles
 from emulator.hosting.runner import DeviceRunner
-from emulator.line import REALISTIC
 from emulator.profiles.profile import ProfileError, load_profile
 from emulator.profiles.registry import channels_of
+from emulator.wire_time import REALISTIC
 from protocols.ms2000 import ttl_report
 from tests.support.memory_transport import MemoryTransport
 from tests.unit.ms2000.conftest import Harness
@@ -221,7 +221,7 @@ def hosted(
 ) -> tuple[ManualClock, DeviceRunner, MemoryTransport, MemoryTransport]:
     clock = ManualClock()
     profile = load_profile(TTLREP)
-    runner = DeviceRunner(lambda now: Ms2000Device("dut", profile, now, HostServices()), clock)
+    runner = DeviceRunner(lambda now: Ms2000Device("dut", profile, now, DeviceServices()), clock)
     main, aux = MemoryTransport(), MemoryTransport(output_limit=aux_limit)
     runner.attach_transport(MAIN, main, REALISTIC)
     runner.attach_transport(AUX, aux, REALISTIC)

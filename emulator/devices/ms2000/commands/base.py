@@ -1,4 +1,4 @@
-"""What every command group shares: the controller as the commands see it (`CommandsHost`), reply
+"""What every command group shares: the controller as the commands see it (`CommandsOwner`), reply
 rendering, item collection."""
 
 from __future__ import annotations
@@ -33,7 +33,7 @@ if TYPE_CHECKING:
     from emulator.devices.ms2000.ttl import Ttl
 
 
-class CommandsHost(Protocol):
+class CommandsOwner(Protocol):
     """All the base command handlers use of their controller: its parts, the state commands set (the
     attributes) and the motion and reply services."""
 
@@ -133,16 +133,16 @@ class CommandsHost(Protocol):
 class CommandSet:
     """Helpers of the command handlers; the handlers themselves live in the sibling modules."""
 
-    def __init__(self, ctl: CommandsHost) -> None:
-        self.ctl = ctl
+    def __init__(self, controller: CommandsOwner) -> None:
+        self.controller = controller
 
     @property
     def _order(self) -> str:
-        return "".join(a.letter for a in self.ctl.axes)
+        return "".join(a.letter for a in self.controller.axes)
 
     def _settings(self, call: Call, params: dict[str, Param], order: str | None = None) -> Reply:
-        ctl = self.ctl
-        return run_settings(call, params, order or self._order, ctl.render(call.key), ctl.ack())
+        controller = self.controller
+        return run_settings(call, params, order or self._order, controller.render(call.key), controller.ack())
 
     def _per_axis(
         self,
@@ -154,7 +154,7 @@ class CommandSet:
         minus: Callable[[Axis], None] | None = None,
     ) -> dict[str, Param]:
         params = {}
-        for a in self.ctl.axes:
+        for a in self.controller.axes:
             params[a.letter] = Param(
                 get=partial(get, a),
                 set=partial(set_, a) if set_ else None,
@@ -166,7 +166,7 @@ class CommandSet:
         return params
 
     def _axis_items(self, call: Call, require: bool = True) -> list[tuple[Axis, Item]]:
-        return axis_items(call, self.ctl.axes, require)
+        return axis_items(call, self.controller.axes, require)
 
     def _list(self, call: Call, values: list[str]) -> Reply:
-        return self.ctl.render(call.key, Shape.A_LIST).items(("", v) for v in values)
+        return self.controller.render(call.key, Shape.A_LIST).items(("", v) for v in values)

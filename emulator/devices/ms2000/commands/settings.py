@@ -152,7 +152,7 @@ class SettingsCommands(CommandSet):
 
         def store(axis: Axis, value: float) -> None:
             axis.auto.aa = int(value)
-            self.ctl.power.save_auto()
+            self.controller.power.save_auto()
 
         return self._settings(
             call,
@@ -168,11 +168,11 @@ class SettingsCommands(CommandSet):
 
     def counts(self, call: Call) -> Reply:
         """CNTS: encoder counts per mm; the stage stops where it is physically (MS-45)."""
-        ctl = self.ctl
+        controller = self.controller
 
         def store(axis: Axis, value: float) -> None:
             t = call.now
-            ctl.leave_group(axis)
+            controller.leave_group(axis)
             axis.stop(t)
             ratio = value / axis.counts_per_mm
             position = round_half_away(axis.pos(t) * ratio)
@@ -218,7 +218,7 @@ class SettingsCommands(CommandSet):
 
         def store(axis: Axis, value: float) -> None:
             axis.s.ll_id = int(value)
-            self.ctl.low.decoder.axis_ids = {a.s.ll_id for a in self.ctl.axes}
+            self.controller.low.decoder.axis_ids = {a.s.ll_id for a in self.controller.axes}
 
         return self._settings(
             call,
@@ -230,7 +230,7 @@ class SettingsCommands(CommandSet):
 
         def check(axis: Axis, value: float) -> float:
             code = within(65, 90, integer=True)(value)
-            if any(other is not axis and other.letter == chr(int(code)) for other in self.ctl.axes):
+            if any(other is not axis and other.letter == chr(int(code)) for other in self.controller.axes):
                 raise CommandError(ErrorCode.OUT_OF_RANGE)
             return code
 
@@ -242,10 +242,10 @@ class SettingsCommands(CommandSet):
         """SL, SU, HM: machine positions reported from the current origin; `+` here, `-` factory;
         remembered at once; on Z an SL at or above SU (or SU at or below SL) is ignored (MS-65, MS-68)."""
         t = call.now
-        ctl = self.ctl
+        controller = self.controller
 
         def factory(axis: Axis) -> float:
-            return getattr(ctl.power.factory_auto(axis.hw_letter), name)
+            return getattr(controller.power.factory_auto(axis.hw_letter), name)
 
         def store(axis: Axis, machine_mm: float) -> None:
             if axis.letter == "Z" and name == "soft_lower" and machine_mm >= axis.auto.soft_upper:
@@ -264,12 +264,12 @@ class SettingsCommands(CommandSet):
         )
         reply = self._settings(call, params)
         if any(i.kind is not Kind.QUERY for i in call.items):
-            ctl.power.save_auto()
+            controller.power.save_auto()
         return reply
 
     def joystick(self, call: Call) -> Reply:
         """JOYSTICK: `+`/`-` enable/disable manual input, `=n` picks the input device (MS-73)."""
-        ctl = self.ctl
+        controller = self.controller
         return self._settings(
             call,
             self._per_axis(
@@ -277,14 +277,14 @@ class SettingsCommands(CommandSet):
                 lambda a, v: setattr(a.s, "input_device", int(v)),
                 lambda a, v: one_of(0, 2, 3, 22)(v),
                 Fmt.I,
-                plus=lambda a: ctl.set_manual_enabled(a, True, call.now),
-                minus=lambda a: ctl.set_manual_enabled(a, False, call.now),
+                plus=lambda a: controller.set_manual_enabled(a, True, call.now),
+                minus=lambda a: controller.set_manual_enabled(a, False, call.now),
             ),
         )
 
     def jsspd(self, call: Call) -> Reply:
         """JSSPD: joystick fast/slow, wheel, knob speeds; named replies (MS-74)."""
-        card = self.ctl.card
+        card = self.controller.card
 
         def speed(value: float) -> float:
             if not 0.1 <= abs(value) <= 100:
@@ -319,14 +319,14 @@ class SettingsCommands(CommandSet):
                 "KNOB_MULT",
             ),
         }
-        if self.ctl.knobs.knob_speeds_need_module and "XY KNOBS" not in self.ctl.cfg.modules:
+        if self.controller.knobs.knob_speeds_need_module and "XY KNOBS" not in self.controller.cfg.modules:
             # MS-KNOB-1 other reading: only builds with the side knobs define F and T (MS-30)
             del params["F"], params["T"]
         return self._settings(call, params, PSEUDO_ORDER)
 
     def rtime(self, call: Call) -> Reply:
         """RTIME: report period, pulse length, delay, averaging (MS-93)."""
-        card = self.ctl.card
+        card = self.controller.card
 
         def param(attr: str, low: float, high: float) -> Param:
             return Param(
@@ -343,12 +343,12 @@ class SettingsCommands(CommandSet):
 
     def ensync(self, call: Call) -> Reply:
         """ENSYNC: X or Y; the output goes low and toggles at each crossing (MS-95)."""
-        ctl = self.ctl
+        controller = self.controller
 
         def store(axis: Axis, value: float) -> None:
-            for other in ctl.axes:
+            for other in controller.axes:
                 other.ensync_mm = None
-            ctl.ensync_level = 0
+            controller.ensync_level = 0
             axis.set_ensync(call.now, value)
 
         params = {k: p for k, p in self._per_axis(lambda a: a.ensync_mm or 0.0, store).items() if k in "XY"}
@@ -356,16 +356,16 @@ class SettingsCommands(CommandSet):
 
     def customa(self, call: Call) -> Reply:
         """CUSTOMA: stored values; X is remembered at once (MS-97)."""
-        ctl = self.ctl
-        card = ctl.card
+        controller = self.controller
+        card = controller.card
 
         def store_x(value: float) -> None:
-            ctl.card_auto.cca_x = int(value)
-            ctl.power.save_auto()
+            controller.card_auto.cca_x = int(value)
+            controller.power.save_auto()
 
         check = within(-32768, 32767, integer=True)
         params = {
-            "X": Param(lambda: ctl.card_auto.cca_x, store_x, check),
+            "X": Param(lambda: controller.card_auto.cca_x, store_x, check),
             "Y": Param(lambda: card.cca_y, lambda v: setattr(card, "cca_y", int(v)), check),
             "Z": Param(lambda: card.cca_z, lambda v: setattr(card, "cca_z", int(v)), check),
         }
@@ -373,7 +373,7 @@ class SettingsCommands(CommandSet):
 
     def stopbits(self, call: Call) -> Reply:
         """STOPBITS: 1 or 2, effective at once (MS-3)."""
-        card = self.ctl.card
+        card = self.controller.card
         params = {
             "X": Param(lambda: card.stop_bits, lambda v: setattr(card, "stop_bits", int(v)), one_of(1, 2))
         }
@@ -381,23 +381,23 @@ class SettingsCommands(CommandSet):
 
     def vb(self, call: Call) -> Reply:
         """VB: X unsolicited-output bits, Y IN1 (read-only), Z WHERE decimals (MS-96, MS-109)."""
-        ctl = self.ctl
-        card = ctl.card
+        controller = self.controller
+        card = controller.card
         params = {
             "X": Param(
                 lambda: card.vb_flags,
                 lambda v: setattr(card, "vb_flags", int(v)),
                 within(0, 63, integer=True),
             ),
-            "Y": Param(lambda: ctl.ttl.in1),
+            "Y": Param(lambda: controller.ttl.in1),
             "Z": Param(
                 lambda: card.vb_decimals,
                 lambda v: setattr(card, "vb_decimals", int(v)),
                 within(0, 6, integer=True),
             ),
         }
-        params.update(ctl.modules.extra_params(call.key))  # `VB T` with NO CHANGE SETTINGS (MS-109)
+        params.update(controller.modules.extra_params(call.key))  # `VB T` with NO CHANGE SETTINGS (MS-109)
         reply = self._settings(call, params, PSEUDO_ORDER)
-        if ctl.knobs.vb_silent and reply == ctl.ack():
+        if controller.knobs.vb_silent and reply == controller.ack():
             return SILENT
         return reply

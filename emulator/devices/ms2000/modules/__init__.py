@@ -25,9 +25,9 @@ TRACKING's `ReportFields`, ARRAY's `RmXServer`), each asked of the modules that 
 
 What happens in the controller (reset, HALT, a completed move, ZERO, IN0 edges, TTL mode changes,
 ARRAY's arrivals, RING BUFFER's `RM X`) reaches a module as a typed event it subscribes to with
-`@on(EventClass)` (events.py); a module sends one to the others with `host.emit()`.
+`@on(EventClass)` (events.py); a module sends one to the others with `controller.emit()`.
 
-A module sees the controller only as a `ModuleHost` (modules/host.py), and only the controller's
+A module sees the controller only as a `ModuleOwner` (modules/owner.py), and only the controller's
 `ModuleSet` (modules/moduleset.py) calls it, in the order documented there. Adding a module is one
 file here, a profile that lists it, its documentation and its tests; a new interaction between two
 modules is one event class, an `emit` in one and an `@on` in the other.
@@ -47,7 +47,7 @@ from emulator.profiles.schema import Field
 from protocols.ms2000 import Shape
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
 
 #: modules present as plain feature flags, without a plug-in (low-level mode is base code, §8)
 FEATURE_FLAGS = ("LL COMMANDS",)
@@ -67,8 +67,8 @@ class Module:
         super().__init_subclass__(**kwargs)
         cls.subscriptions = subscriptions(cls)
 
-    def __init__(self, host: ModuleHost) -> None:
-        self.host = host
+    def __init__(self, controller: ModuleOwner) -> None:
+        self.controller = controller
 
     @classmethod
     def channels(cls, knobs: Any) -> tuple[str, ...]:

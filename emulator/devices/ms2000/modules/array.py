@@ -41,7 +41,7 @@ from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
     from emulator.devices.ms2000.scheduler import Timer
 
 #: MS-ARRAY-1: a 96-well plate
@@ -100,9 +100,9 @@ class ArrayModule(Module, RmXServer, TtlIn, PanelButtons, LcdSegment, ControlCha
     button_priority = 40  # after SEQUENCER, CRISP, SCAN (MS-85)
     observable = "array"
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
-        self.roles = shared_roles(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
+        self.roles = shared_roles(controller)
         self.grid = dict(FACTORY_GRID)
         self.home = {"X": 0.0, "Y": 0.0}  # AH: the (1,1) cell, user mm
         self.cell: Cell = (1, 1)
@@ -115,7 +115,7 @@ class ArrayModule(Module, RmXServer, TtlIn, PanelButtons, LcdSegment, ControlCha
 
     def handlers(self) -> dict[str, Handler]:
         table: dict[str, Handler] = {"AR": self.array, "AH": self.ahome, "AIJ": self.aij}
-        if SCAN_MODULE not in self.host.cfg.modules:  # SCAN MODULE owns SN when present
+        if SCAN_MODULE not in self.controller.cfg.modules:  # SCAN MODULE owns SN when present
             table["SN"] = self.scan_settings
         return table
 
@@ -156,7 +156,7 @@ class ArrayModule(Module, RmXServer, TtlIn, PanelButtons, LcdSegment, ControlCha
                 for key, value in stored.items():
                     if key in own and isinstance(value, int | float) and not isinstance(value, bool):
                         own[key] = value
-        self.roles.restore(data, self.host)
+        self.roles.restore(data, self.controller)
 
     @on(Reset)
     def reset(self, event: Reset) -> None:
@@ -175,7 +175,7 @@ class ArrayModule(Module, RmXServer, TtlIn, PanelButtons, LcdSegment, ControlCha
         (MS-ARRAY-1, MS-ARRAY-5)."""
         if not [i for i in call.items if i.kind is not Kind.NUMBER]:
             self.toggle_self_scan(call.now)
-            return self.host.ack()
+            return self.controller.ack()
         grid = self.grid
 
         def setter(key: str) -> Callable[[float], None]:
@@ -188,18 +188,18 @@ class ArrayModule(Module, RmXServer, TtlIn, PanelButtons, LcdSegment, ControlCha
             "F": Param(lambda: grid["dy"], setter("dy"), fmt=Fmt.F6),
             "T": Param(lambda: grid["tilt"], setter("tilt"), within(-MAX_TILT_DEG, MAX_TILT_DEG), Fmt.F6),
         }
-        return run_settings(call, params, "XYZFT", self.host.render(call.key), self.host.ack())
+        return run_settings(call, params, "XYZFT", self.controller.render(call.key), self.controller.ack())
 
     def ahome(self, call: Call) -> Reply:
         """AHOME: bare, the current XY position becomes cell (1,1); `AH X=x Y=y` in mm (MS-ARRAY-2)."""
         if not [i for i in call.items if i.kind is not Kind.NUMBER]:
             for letter in self.home:
-                axis = self.host.axis_named(letter)
+                axis = self.controller.axis_named(letter)
                 if axis is not None:
                     self.home[letter] = axis.user_mm(call.now)
-            return self.host.ack()
+            return self.controller.ack()
         params = {letter: self._home_param(letter) for letter in self.home}
-        return run_settings(call, params, "XY", self.host.render(call.key), self.host.ack())
+        return run_settings(call, params, "XY", self.controller.render(call.key), self.controller.ack())
 
     def _home_param(self, letter: str) -> Param:
         def store(value: float) -> None:
@@ -225,7 +225,7 @@ class ArrayModule(Module, RmXServer, TtlIn, PanelButtons, LcdSegment, ControlCha
         }
         items = [i for i in call.items if i.kind is not Kind.NUMBER]
         reply = run_settings(
-            call, params, "XY", self.host.render(call.key), self.host.ack(), require_items=False
+            call, params, "XY", self.controller.render(call.key), self.controller.ack(), require_items=False
         )
         if not items or any(i.kind is not Kind.QUERY for i in items):
             self._stop(IDLE)
@@ -235,15 +235,17 @@ class ArrayModule(Module, RmXServer, TtlIn, PanelButtons, LcdSegment, ControlCha
     def scan_settings(self, call: Call) -> Reply:
         """SCAN in a build without SCAN MODULE: the axis roles and pattern only (MS-SCAN-1); bare `SN`
         has nothing to start: `:N-3` [choice]."""
-        return run_settings(call, self.roles.params(), "XYZF", self.host.render(call.key), self.host.ack())
+        return run_settings(
+            call, self.roles.params(), "XYZF", self.controller.render(call.key), self.controller.ack()
+        )
 
     # ---- geometry (MS-ARRAY-3) ----------------------------------------------------------------
 
     def _roles(self) -> tuple[Axis | None, Axis | None]:
         """The axes the columns (fast) and rows (slow) run along: `SN`'s, else X and Y [choice]."""
-        fast, slow = self.roles.axis_with(FAST, self.host), self.roles.axis_with(SLOW, self.host)
+        fast, slow = self.roles.axis_with(FAST, self.controller), self.roles.axis_with(SLOW, self.controller)
         if fast is None or slow is None or fast is slow:
-            return self.host.axis_named("X"), self.host.axis_named("Y")
+            return self.controller.axis_named("X"), self.controller.axis_named("Y")
         return fast, slow
 
     def cell_goals(self, cell: Cell) -> list[tuple[Axis, float]]:
@@ -275,7 +277,7 @@ class ArrayModule(Module, RmXServer, TtlIn, PanelButtons, LcdSegment, ControlCha
     @on(RmX)
     def rm_x(self, event: RmX) -> None:
         """`RM X=1` starts commanded stepping; `RM X=0` too with the knob, in IN0 mode 7 (MS-ARRAY-6)."""
-        knob = self.host.knobs.array_start_on_rm_x0 and self.host.card.ttl_in == STEP_MODE
+        knob = self.controller.knobs.array_start_on_rm_x0 and self.controller.card.ttl_in == STEP_MODE
         if event.value == START_STEPPING or (event.value == 0 and knob):
             self._begin(STEPPING, event.t)
 
@@ -293,7 +295,7 @@ class ArrayModule(Module, RmXServer, TtlIn, PanelButtons, LcdSegment, ControlCha
         if (name, press) == ("at", NORMAL):
             self.toggle_self_scan(now)
             return True
-        if (name, press) == ("at", LONG) and SEQUENCER in self.host.cfg.modules:
+        if (name, press) == ("at", LONG) and SEQUENCER in self.controller.cfg.modules:
             if self.running != SELF_SCAN:
                 self._begin(SELF_SCAN, now)
             return True
@@ -321,7 +323,7 @@ class ArrayModule(Module, RmXServer, TtlIn, PanelButtons, LcdSegment, ControlCha
             self._stop(ERROR)  # no axis can move: the move fails at once
             return
         self.state = MOVING
-        self.host.start_moves(self.goals, now)
+        self.controller.start_moves(self.goals, now)
 
     @on(MoveComplete)
     def move_complete(self, event: MoveComplete) -> None:
@@ -338,8 +340,8 @@ class ArrayModule(Module, RmXServer, TtlIn, PanelButtons, LcdSegment, ControlCha
             self._stop(ERROR)
             return
         i, j = self.cell
-        self.host.push_event({"ev": "array_arrival", "i": i, "j": j, "t": now})
-        self.host.emit(ArrayArrival(now))  # SEQUENCER's condition 13 (MS-ARRAY-8)
+        self.controller.push_event({"ev": "array_arrival", "i": i, "j": j, "t": now})
+        self.controller.emit(ArrayArrival(now))  # SEQUENCER's condition 13 (MS-ARRAY-8)
         self.state = ARRIVED
         last = self.step + 1 >= self.order.count
         if self.running == SELF_SCAN:
@@ -352,11 +354,11 @@ class ArrayModule(Module, RmXServer, TtlIn, PanelButtons, LcdSegment, ControlCha
 
     def _playback(self) -> int | None:
         """RING BUFFER's playback mode, which self-scanning follows (MS-ARRAY-5)."""
-        ring = self.host.module(Playback)
+        ring = self.controller.module(Playback)
         return ring.playback_mode() if ring is not None else None
 
     def _after_delay(self, now: float, action: Callable[[float], None]) -> None:
-        self._timer = self.host.at(now + self.host.card.rt_delay_ms / 1000, action)
+        self._timer = self.controller.at(now + self.controller.card.rt_delay_ms / 1000, action)
 
     def _next_self_scan_cell(self, now: float) -> None:
         self._timer = None

@@ -56,7 +56,7 @@ from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
     from emulator.devices.ms2000.scheduler import Timer
 
 AUTOFOCUS, CRISP = "AUTOFOCUS", "CRISP"
@@ -105,12 +105,12 @@ class Autofocus(Module, FocusScore, TtlIn, TtlOut, PanelButtons, LcdSegment, Con
     button_priority = 50  # MS-85: after ARRAY, before PLANAR CORRECTION
     inputs = frozenset({"focus", "clutch"})
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.curve = FocusCurve()
         self.clutch_engaged = True
         #: MS-DAC-3: PZ builds drive a piezo focus axis
-        self.settings = AfSettings(piezo="PZ" in host.cfg.build_name)
+        self.settings = AfSettings(piezo="PZ" in controller.cfg.build_name)
         self.run: Run | None = None
         self.focused = False
         self.last_max = 0
@@ -129,7 +129,7 @@ class Autofocus(Module, FocusScore, TtlIn, TtlOut, PanelButtons, LcdSegment, Con
             "AM": self.afmove,
         }
         # AL is CRISP's too; the reference does not say who wins, so the first listed serves it
-        if next(n for n in self.host.cfg.modules if n in (AUTOFOCUS, CRISP)) == AUTOFOCUS:
+        if next(n for n in self.controller.cfg.modules if n in (AUTOFOCUS, CRISP)) == AUTOFOCUS:
             table["AL"] = self.aflim
         return table
 
@@ -140,7 +140,7 @@ class Autofocus(Module, FocusScore, TtlIn, TtlOut, PanelButtons, LcdSegment, Con
 
     def focus_score(self, now: float) -> int | None:
         """The filtered focus value now (MS-AF-2, MS-117): the last three frames where the axis was."""
-        axis = self.host.focus_axis()
+        axis = self.controller.focus_axis()
         if axis is None:
             return None
         frame = frame_of(now)
@@ -180,7 +180,7 @@ class Autofocus(Module, FocusScore, TtlIn, TtlOut, PanelButtons, LcdSegment, Con
         self._push_end(now, HALTED)  # a reset stops a run as HALT does
         self.run = None  # AFADJ is what restore() brought back
         self.focused = False
-        self._arm_repeat(now, self.host.card.ttl_in == AF_REPEAT)
+        self._arm_repeat(now, self.controller.card.ttl_in == AF_REPEAT)
 
     @on(Halt)
     def halt(self, event: Halt) -> None:
@@ -195,25 +195,25 @@ class Autofocus(Module, FocusScore, TtlIn, TtlOut, PanelButtons, LcdSegment, Con
         """AF: parameters (MS-AF-1); bare, a run (MS-AF-3)."""
         if not _has_items(call):
             return self._start_serial(call.now, calibrating=False)
-        return self.settings.af_command(call, self.host.render(call.key), self.host.ack())
+        return self.settings.af_command(call, self.controller.render(call.key), self.controller.ack())
 
     def afcalib(self, call: Call) -> Reply | Pending:
         """AFC: parameters; bare, the calibration (MS-AF-6)."""
         if not _has_items(call):
             return self._start_serial(call.now, calibrating=True)
-        return self.settings.calib_command(call, self.host.render(call.key), self.host.ack())
+        return self.settings.calib_command(call, self.controller.render(call.key), self.controller.ack())
 
     def afadj(self, call: Call) -> Reply:
-        return self.settings.adjust_command(call, self.host.render(call.key), self.host.ack())
+        return self.settings.adjust_command(call, self.controller.render(call.key), self.controller.ack())
 
     def aflim(self, call: Call) -> Reply:
-        return self.settings.area_command(call, self.host.render(call.key), self.host.ack())
+        return self.settings.area_command(call, self.controller.render(call.key), self.controller.ack())
 
     def afmove(self, call: Call) -> Reply:
-        return self.settings.move_command(call, self.host.render(call.key), self.host.ack())
+        return self.settings.move_command(call, self.controller.render(call.key), self.controller.ack())
 
     def afinfo(self, call: Call) -> Reply:
-        where = self.host.where
+        where = self.controller.where
         return self.settings.info(self.last_max, where(self.start_units), where(self.final_units))
 
     # ---- what starts a run --------------------------------------------------------------------
@@ -256,7 +256,9 @@ class Autofocus(Module, FocusScore, TtlIn, TtlOut, PanelButtons, LcdSegment, Con
             self._repeat.cancel()
             self._repeat = None
         if on:
-            self._repeat = self.host.at(now + self.host.card.rt_report_ms / 1000, self._repeat_due)
+            self._repeat = self.controller.at(
+                now + self.controller.card.rt_report_ms / 1000, self._repeat_due
+            )
 
     def _repeat_due(self, now: float) -> None:
         self._repeat = None
@@ -275,14 +277,14 @@ class Autofocus(Module, FocusScore, TtlIn, TtlOut, PanelButtons, LcdSegment, Con
     def move_complete(self, event: MoveComplete) -> None:
         axes = event.axes
         now = event.t
-        axis = self.host.focus_axis()
+        axis = self.controller.focus_axis()
         run = self.run
         if run is not None and axis is not None and axis.letter in axes:
             if axis.target != run.leg_target:  # another command took the axis over [choice]
                 self._end(now, Reply.text(error_reply(ErrorCode.FAILED)), result=TAKEN_OVER)
             else:
                 self._leg_done(axis, run, now)
-        xy = {a.letter for a in self.host.axes[:2]}
+        xy = {a.letter for a in self.controller.axes[:2]}
         if self.settings.on_move["x"] and xy & set(axes) and self.run is None:
             self._start_silent(now)  # MS-AF-8
 
@@ -290,17 +292,17 @@ class Autofocus(Module, FocusScore, TtlIn, TtlOut, PanelButtons, LcdSegment, Con
 
     def _start(self, now: float, calibrating: bool, serial: bool) -> int | None:
         """Start a run; the error code when it is refused."""
-        axis = self.host.focus_axis()
+        axis = self.controller.focus_axis()
         if self.run is not None and axis is not None and not axis.busy(now):
             self._drop(now)  # its motion was cut short without a completion: stale
         if self.run is not None or axis is None or not axis.enabled or self.settings.af["speed"] <= 0:
             return ErrorCode.FAILED  # [choice] nothing to scan with
         half = self.settings.af["range"] / 2
         if self.settings.area["safety"] and half > SAFETY_MM + 1e-9:
-            self.host.log_error(SAFETY_LIMIT)
+            self.controller.log_error(SAFETY_LIMIT)
             return ErrorCode.FAILED
         if not self.clutch_engaged:
-            self.host.log_error(CLUTCH_OPEN)
+            self.controller.log_error(CLUTCH_OPEN)
             return ErrorCode.FAILED
         start = axis.user_mm(now)
         self.start_units = axis.units(now)
@@ -317,15 +319,15 @@ class Autofocus(Module, FocusScore, TtlIn, TtlOut, PanelButtons, LcdSegment, Con
         if calibrating:
             self.settings.adjust = Adjust()  # the first scan sees the unadjusted signal
         self.focused = False
-        self.host.refresh_out0(now)
+        self.controller.refresh_out0(now)
         span = {"axis": axis.letter, "start_um": round(start * 1000, 4), "range_um": round(half * 2000, 4)}
-        self.host.push_event({"ev": RUN_START, "t": now, "calibrating": calibrating, **span})
+        self.controller.push_event({"ev": RUN_START, "t": now, "calibrating": calibrating, **span})
         self._leg(axis, self.run, self.run.bottom_mm, now)
         return None
 
     def _leg(self, axis: Axis, run: Run, goal_mm: float, now: float, speed: float | None = None) -> None:
         """A move of the run: busy like other commanded motion (`B`), no OUT0 pulse (MS-81)."""
-        self.host.start_scan_move(axis, float(round_half_away(axis.counts_of(goal_mm))), now, speed)
+        self.controller.start_scan_move(axis, float(round_half_away(axis.counts_of(goal_mm))), now, speed)
         run.leg_target = axis.target  # after clamping to the limits
 
     def _leg_done(self, axis: Axis, run: Run, now: float) -> None:
@@ -338,21 +340,21 @@ class Autofocus(Module, FocusScore, TtlIn, TtlOut, PanelButtons, LcdSegment, Con
             self._cancel_sampler()
             self._scan_done(axis, run, now)
         else:
-            self._end(now, run.reply or self.host.ack(), run.focused, run.result)
+            self._end(now, run.reply or self.controller.ack(), run.focused, run.result)
 
     def _sample(self, now: float) -> None:
         """One video frame during the scan; hill-detect may end the scan here (MS-AF-3)."""
         self._sampler = None
-        run, axis = self.run, self.host.focus_axis()
+        run, axis = self.run, self.controller.focus_axis()
         if run is None or axis is None or run.phase != SCAN:
             return
         z_um = axis.user_mm(now) * 1000
         value = self.settings.adjust.apply(self.curve.raw(z_um, frame_of(now)))
         run.scan.add(z_um, value)
-        if self.host.explain:  # per frame: for the traffic log only (`LOG_ONLY`)
+        if self.controller.explain:  # per frame: for the traffic log only (`LOG_ONLY`)
             filtered = None if run.scan.current is None else round(run.scan.current, 2)
             sample = {"ev": AF_SAMPLE, "t": now, "z_um": round(z_um, 4), "value": value, "filtered": filtered}
-            self.host.push_event(sample)
+            self.controller.push_event(sample)
         hill = self.settings.af["mode"] == HILL_MODE and not run.calibrating
         if hill and run.scan.past_hill(self.settings.af["hill"], self.settings.calib["contrast"]):
             self._scan_done(axis, run, now)
@@ -361,13 +363,13 @@ class Autofocus(Module, FocusScore, TtlIn, TtlOut, PanelButtons, LcdSegment, Con
 
     def _next_frame(self, after: float) -> None:
         """Sample at the first video frame starting at or after `after`."""
-        self._sampler = self.host.at(next_frame_at(after), self._sample)
+        self._sampler = self.controller.at(next_frame_at(after), self._sample)
 
     def _scan_done(self, axis: Axis, run: Run, now: float) -> None:
         scan = run.scan
         run.phase = RETURN
         if scan.best is None or scan.contrast < self.settings.calib["contrast"]:
-            self.host.log_error(NO_CONTRAST)  # MS-AF-4: back to the start, :N-5
+            self.controller.log_error(NO_CONTRAST)  # MS-AF-4: back to the start, :N-5
             run.reply = Reply.text(error_reply(ErrorCode.FAILED))
             run.result = LOW_CONTRAST
             self._leg(axis, run, run.start_mm, now)
@@ -390,8 +392,8 @@ class Autofocus(Module, FocusScore, TtlIn, TtlOut, PanelButtons, LcdSegment, Con
         self.last_max = round_half_away(scan.best)
         run.focused = True
         run.result = FOCUSED
-        if self.host.knobs.af_reply_value:
-            run.reply = self.host.render("AF", Shape.A_LIST).items([("", str(self.last_max))])
+        if self.controller.knobs.af_reply_value:
+            run.reply = self.controller.render("AF", Shape.A_LIST).items([("", str(self.last_max))])
         self._leg(axis, run, scan.best_um / 1000, now)
 
     def _end(self, now: float, reply: Reply, focused: bool = False, result: str = DROPPED) -> None:
@@ -399,17 +401,17 @@ class Autofocus(Module, FocusScore, TtlIn, TtlOut, PanelButtons, LcdSegment, Con
         run = self.run
         if run is None:
             return
-        axis = self.host.focus_axis()
+        axis = self.controller.focus_axis()
         if axis is not None:
             self.final_units = axis.units(now)
         self._drop(now, result)
         self.focused = focused
-        self.host.refresh_out0(now)
-        if self.host.card.ttl_in == AF_REPEAT:
+        self.controller.refresh_out0(now)
+        if self.controller.card.ttl_in == AF_REPEAT:
             self._arm_repeat(now, True)
         if run.serial:
             self._reply = reply
-            self.host.finish_pending(now)
+            self.controller.finish_pending(now)
 
     def _drop(self, now: float, result: str = DROPPED) -> None:
         """Forget the run (its motion, if any, is the caller's business); a calibration cut short
@@ -428,7 +430,7 @@ class Autofocus(Module, FocusScore, TtlIn, TtlOut, PanelButtons, LcdSegment, Con
         best, best_um = run.scan.best, run.scan.best_um
         peak = {} if best is None else {"peak": round(best, 2), "peak_um": round(best_um, 4)}
         end = {"ev": RUN_END, "t": now, "result": result, "calibrating": run.calibrating}
-        self.host.push_event(end | peak)
+        self.controller.push_event(end | peak)
 
     def _cancel_sampler(self) -> None:
         if self._sampler is not None:

@@ -2,7 +2,7 @@
 capability, which the module also derives from. The controller asks a capability only of the
 modules that have it (`ModuleSet.all_of`, `ModuleSet.get`); a value one module owns and others read
 (the report mask, the playback mode, the focus score) is a query of that module by capability
-(`host.module(Playback)`), not a question put to every module. The base code and other modules thus
+(`controller.module(Playback)`), not a question put to every module. The base code and other modules thus
 name the capability, never the module that has it. Defaults that do nothing are given where a module
 may have the capability without each part (an OUT0 mode the base drives, PREPULSE); the rest raise
 `NotImplementedError`. (mypy accepts only concrete classes as a query's type, hence no ABCs.)
@@ -105,7 +105,7 @@ class CommandVeto:
 
 class AutoSettings:
     """Settings remembered as soon as they change (DLED maxima, MS-111), under
-    `auto.modules.<name>`; the module calls `host.limits_changed()` when they change."""
+    `auto.modules.<name>`; the module calls `controller.limits_changed()` when they change."""
 
     def save_auto(self) -> dict[str, Any]:
         raise NotImplementedError

@@ -57,7 +57,7 @@ from protocols.ms2000 import Shape
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
     from emulator.devices.ms2000.scheduler import Timer
 
 LOCK_MODE = 9  # IN0 (MS-90)
@@ -95,10 +95,10 @@ class Crisp(
     inputs = frozenset({"crisp"})
     outranks = frozenset({"TRACKING"})
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.state = st.IDLE
-        self.settings = CrispSettings.restored(None, len(host.axes))
+        self.settings = CrispSettings.restored(None, len(controller.axes))
         #: `UL F` takes effect at reset (MS-CRISP-5)
         self.active_index = self.settings.focus_index
         self.optics = Optics()
@@ -115,14 +115,14 @@ class Crisp(
         return self.active_index
 
     def _axis(self) -> Axis | None:
-        return self.host.focus_axis()
+        return self.controller.focus_axis()
 
     @property
     def gain(self) -> float:
-        return float(self.host.knobs.crisp_counts_per_um)
+        return float(self.controller.knobs.crisp_counts_per_um)
 
     def dim(self) -> bool:
-        return self.optics.sum < self.host.knobs.crisp_dim_threshold
+        return self.optics.sum < self.controller.knobs.crisp_dim_threshold
 
     def signal_sum(self) -> int:
         """0 with the LED off (`I`), else the sum input."""
@@ -164,7 +164,7 @@ class Crisp(
         old, self.state = self.state, state
         if state in st.ENGAGED:
             if self._tick is None:
-                self._tick = self.host.at(now + self.settings.update_ms / 1000, self._on_tick)
+                self._tick = self.controller.at(now + self.settings.update_ms / 1000, self._on_tick)
         else:
             if self._tick is not None:
                 self._tick.cancel()
@@ -174,7 +174,7 @@ class Crisp(
         if state == st.IN_FOCUS and self._pulse_waiting:
             self._fire_pulse(now)
         if old != state:
-            self.host.refresh_out0(now)
+            self.controller.refresh_out0(now)
             self._push_state(old, now)
 
     def engage(self, state: str, now: float) -> None:
@@ -222,12 +222,12 @@ class Crisp(
     def _on_tick(self, now: float) -> None:
         self._tick = None
         self.sync(now)
-        if self.host.explain:
+        if self.controller.explain:
             self._push_sample(now)
         if self.state in (st.LOCK, st.IN_FOCUS):
             self._correct(now)
         if self.state in st.ENGAGED and self._tick is None:
-            self._tick = self.host.at(now + self.settings.update_ms / 1000, self._on_tick)
+            self._tick = self.controller.at(now + self.settings.update_ms / 1000, self._on_tick)
 
     def _correct(self, now: float) -> None:
         axis = self._axis()
@@ -245,13 +245,13 @@ class Crisp(
         event: dict[str, Any] = {"ev": FOCUS_EVENT, "t": now, "previous": previous}
         event["axis"] = None if axis is None else axis.letter
         event["in_focus_counts"] = round(self.settings.in_focus_mm * 1000 * self.gain, 4)
-        self.host.push_event(event | self._reading(now))
+        self.controller.push_event(event | self._reading(now))
 
     def _push_sample(self, now: float) -> None:
         """The error the lock loop acts on, per update: for the traffic log only (`LOG_ONLY`)."""
         surface_um = self.optics.describe(self._axis(), now)["surface_um"]
         sample = {"ev": CRISP_SAMPLE, "t": now, "error": self.error(now), "surface_um": round(surface_um, 4)}
-        self.host.push_event(sample)
+        self.controller.push_event(sample)
 
     def advance(self, now: float) -> None:
         """Bare `LK`, a normal `@` press, `BE F=11`: the panel button's cycle (MS-CRISP-2)."""
@@ -299,7 +299,7 @@ class Crisp(
 
     def move_pulse_waiting(self) -> bool:
         """OUT0 mode 11: a move's pulse waits for `F`, and `/` answers `B` (MS-CRISP-7)."""
-        return self._pulse_waiting and self.host.card.ttl_out == PULSE_MODE
+        return self._pulse_waiting and self.controller.card.ttl_out == PULSE_MODE
 
     # ---- commands -----------------------------------------------------------------------------
 
@@ -322,7 +322,7 @@ class Crisp(
         self._end_pulse(event.t)
 
     def out0_level(self) -> int | None:
-        if self.host.card.ttl_out == IN_FOCUS_MODE:
+        if self.controller.card.ttl_out == IN_FOCUS_MODE:
             return int(self.state == st.IN_FOCUS)
         return int(self._pulse is not None)
 
@@ -330,7 +330,7 @@ class Crisp(
     def move_complete(self, event: MoveComplete) -> None:
         now = event.t
         self.sync(now)
-        if self.host.card.ttl_out != PULSE_MODE or self.state not in st.ENGAGED:
+        if self.controller.card.ttl_out != PULSE_MODE or self.state not in st.ENGAGED:
             return
         if self.state == st.IN_FOCUS:
             self._fire_pulse(now)
@@ -341,21 +341,21 @@ class Crisp(
         self._pulse_waiting = False
         if self._pulse is not None:
             self._pulse.cancel()
-        self._pulse = self.host.at(now + self.host.card.rt_pulse_ms / 1000, self._end_pulse)
-        self.host.refresh_out0(now)
+        self._pulse = self.controller.at(now + self.controller.card.rt_pulse_ms / 1000, self._end_pulse)
+        self.controller.refresh_out0(now)
 
     def _end_pulse(self, now: float) -> None:
         if self._pulse is not None:
             self._pulse.cancel()
             self._pulse = None
-            self.host.refresh_out0(now)
+            self.controller.refresh_out0(now)
 
     # ---- buttons and the wheel ----------------------------------------------------------------
 
     def button(self, name: str, press: str, now: float) -> bool:
         if name != "at":
             return False
-        if self.host.button_held_ms > OFFSET_PRESS_MS:
+        if self.controller.button_held_ms > OFFSET_PRESS_MS:
             self.reset_offset(now)
             return True
         if press == NORMAL:
@@ -378,7 +378,7 @@ class Crisp(
     # ---- reports, control channel, SS Z, reset, HALT -------------------------------------------
 
     def bu_line(self) -> str:
-        return str(self.host.knobs.crisp_directive_name)  # MS-102
+        return str(self.controller.knobs.crisp_directive_name)  # MS-102
 
     def lcd_segment(self, now: float) -> str | None:
         self.sync(now)
@@ -407,7 +407,7 @@ class Crisp(
         return self.settings.save()
 
     def restore(self, data: dict[str, Any] | None) -> None:
-        self.settings = CrispSettings.restored(data, len(self.host.axes))
+        self.settings = CrispSettings.restored(data, len(self.controller.axes))
 
     @on(Reset)
     def reset(self, event: Reset) -> None:

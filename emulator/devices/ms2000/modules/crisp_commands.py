@@ -49,8 +49,8 @@ class CrispCommands:
         self.crisp = crisp
 
     def _settings(self, call: Call, params: dict[str, Param]) -> Reply:
-        host = self.crisp.host
-        return run_settings(call, params, PSEUDO_ORDER, host.render(call.key), host.ack())
+        controller = self.crisp.controller
+        return run_settings(call, params, PSEUDO_ORDER, controller.render(call.key), controller.ack())
 
     def table(self) -> dict[str, Handler]:
         return {
@@ -68,7 +68,7 @@ class CrispCommands:
         items = [i for i in call.items if i.kind is not Kind.NUMBER]
         if not items:
             self.crisp.advance(now)
-            return self.crisp.host.ack()
+            return self.crisp.controller.ack()
         codes: list[int] = []
         sets: dict[str, int] = {}
         queries: list[str] = []
@@ -99,7 +99,7 @@ class CrispCommands:
             self.crisp.apply_code(code, now)
         self.crisp.sync(now)
         if not queries:
-            return self.crisp.host.ack()
+            return self.crisp.controller.ack()
         values = {
             "X": self.crisp.state,
             "Y": str(self.crisp.error(now)),
@@ -110,7 +110,9 @@ class CrispCommands:
         }
         ordered = [letter for letter in PSEUDO_ORDER if letter in queries]
         numeric = any(letter not in "XF" for letter in ordered)
-        rendered = replace(self.crisp.host.render(call.key), trailing_space=numeric)  # MS-38, MS-CRISP-4
+        rendered = replace(
+            self.crisp.controller.render(call.key), trailing_space=numeric
+        )  # MS-38, MS-CRISP-4
         return rendered.items([(letter, values[letter]) for letter in ordered])
 
     @staticmethod
@@ -133,8 +135,8 @@ class CrispCommands:
         if not [i for i in call.items if i.kind is not Kind.NUMBER]:
             if self.crisp.state in st.ENGAGED:
                 self.crisp.enter(st.READY, call.now)
-            return self.crisp.host.ack()
-        params = unlock_params(self.crisp.settings, len(self.crisp.host.axes))
+            return self.crisp.controller.ack()
+        params = unlock_params(self.crisp.settings, len(self.crisp.controller.axes))
         return self._settings(call, params)
 
     def aflim(self, call: Call) -> Reply:
@@ -146,7 +148,7 @@ class CrispCommands:
         """EXTRA X? (the LCD line), Y? (SNR), Z (integral gain); `M` is the base command's (MS-86)."""
         items = [i for i in call.items if i.kind is not Kind.NUMBER]
         if not items or any(i.letter == "M" for i in items):
-            return self.crisp.host.base_handler(call.key)(call)
+            return self.crisp.controller.base_handler(call.key)(call)
         codes: list[int] = []
         gain: float | None = None
         for item in items:
@@ -168,17 +170,17 @@ class CrispCommands:
             letter for letter in "XYZ" if any(i.letter == letter and i.kind is Kind.QUERY for i in items)
         ]
         if not queried:
-            return self.crisp.host.ack()
+            return self.crisp.controller.ack()
         first = queried[0]  # one reading per reply [choice]
         if first == "X":
             return Reply.text(self.crisp.extra_line(call.now))
         if first == "Y":
             return Reply.text(f":A {self.crisp.snr():.1f}")
-        return self.crisp.host.render(call.key).items([("Z", f6(self.crisp.settings.integral_gain))])
+        return self.crisp.controller.render(call.key).items([("Z", f6(self.crisp.settings.integral_gain))])
 
     def status(self, call: Call) -> Reply | Pending:
         """STATUS: in OUT0 mode 11 also `B` while a move's pulse waits for `F` (MS-CRISP-7)."""
         self.crisp.sync(call.now)
         if self.crisp.move_pulse_waiting():
             return Reply.text("B")
-        return self.crisp.host.base_handler(call.key)(call)
+        return self.crisp.controller.base_handler(call.key)(call)

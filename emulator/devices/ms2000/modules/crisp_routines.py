@@ -57,7 +57,7 @@ class Routines:
         self.resume_to = st.READY
 
     def _after(self, seconds: float, action: Callable[[float], None], now: float) -> None:
-        self.timer = self.crisp.host.at(now + seconds, self._run(action))
+        self.timer = self.crisp.controller.at(now + seconds, self._run(action))
 
     def _run(self, action: Callable[[float], None]) -> Callable[[float], None]:
         def run(due: float) -> None:
@@ -76,7 +76,7 @@ class Routines:
         if self.curve is not None:
             self.curve = None
             if not quiet:
-                self.crisp.host.unsolicited("end", now)
+                self.crisp.controller.unsolicited("end", now)
         return self.resume_to
 
     # ---- log-amp calibration ------------------------------------------------------------------
@@ -149,7 +149,9 @@ class Routines:
         if curve is None:
             return
         crisp.enter(st.CURVE_LOW if curve.index < CURVE_STEPS // 2 else st.CURVE_HIGH, now)
-        crisp.host.unsolicited(f"{crisp.host.where(crisp.focus_units(now))} {crisp.error(now)}", now)
+        crisp.controller.unsolicited(
+            f"{crisp.controller.where(crisp.focus_units(now))} {crisp.error(now)}", now
+        )
         curve.index += 1
         if curve.index > CURVE_STEPS:
             crisp.enter(st.CURVE_BACK, now)
@@ -168,7 +170,7 @@ class Routines:
         if curve is None:
             return
         self.curve = None
-        self.crisp.host.unsolicited("end", now)
+        self.crisp.controller.unsolicited("end", now)
         self.crisp.resume(self.resume_to, now)
 
     # ---- offset reset -------------------------------------------------------------------------

@@ -19,7 +19,7 @@ from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
 
 FULL_SCALE_V = 10.0
 TOP_CODE = 65535  # 16 bits
@@ -41,13 +41,13 @@ class DacOut(Module, LcdSegment, ControlChannel):
     name = "DAC OUT"
     observable = "dac_out_v"
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.volts = 0.0
 
     @property
     def drives_piezo(self) -> bool:
-        return PIEZO_MARK in self.host.cfg.build_name
+        return PIEZO_MARK in self.controller.cfg.build_name
 
     def handlers(self) -> dict[str, Handler]:
         return {"WRDAC": self.wrdac}
@@ -57,7 +57,7 @@ class DacOut(Module, LcdSegment, ControlChannel):
         if self.drives_piezo:
             raise CommandError(ErrorCode.FAILED)  # MS-DAC-3 [choice: :N-5]
         params = {"X": Param(lambda: self.volts, self._set, within(0.0, FULL_SCALE_V), Fmt.F6)}
-        return run_settings(call, params, "X", self.host.render(call.key), self.host.ack())
+        return run_settings(call, params, "X", self.controller.render(call.key), self.controller.ack())
 
     def _set(self, volts: float) -> None:
         self.volts = volts
@@ -73,7 +73,7 @@ class DacOut(Module, LcdSegment, ControlChannel):
         return (machine_mm - low) / (high - low) * FULL_SCALE_V
 
     def output_volts(self, now: float) -> float:
-        focus = self.host.focus_axis()
+        focus = self.controller.focus_axis()
         volts = self._piezo_volts(focus, now) if self.drives_piezo and focus is not None else self.volts
         return volts_of(code_of(volts))
 

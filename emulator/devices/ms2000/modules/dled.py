@@ -24,7 +24,7 @@ from emulator.devices.ms2000.modules.capabilities import AutoSettings, ControlCh
 from emulator.devices.ms2000.modules.events import In0ModeChanged, Reset, on
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
     from emulator.devices.ms2000.scheduler import Timer
 
 CHANNELS = ("X", "Y")
@@ -48,8 +48,8 @@ class Dled(Module, AutoSettings, TtlIn, LcdSegment, ControlChannel):
     in0_modes = GATED_MODES
     observable = "led"
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.levels = dict(FACTORY_LEVELS)
         self.maxima = dict(FACTORY_MAXIMA)
         #: channels IN0 has lit in modes 20–23
@@ -87,10 +87,10 @@ class Dled(Module, AutoSettings, TtlIn, LcdSegment, ControlChannel):
             return Param(lambda: self.maxima[channel], store, percent)
 
         params = {**{c: level(c) for c in CHANNELS}, **{MAX_LETTER[c]: maximum(c) for c in CHANNELS}}
-        reply = run_settings(call, params, "XYTR", self.host.render(call.key), self.host.ack())
+        reply = run_settings(call, params, "XYTR", self.controller.render(call.key), self.controller.ack())
         self.levels = {c: self._limited(c) for c in CHANNELS}
         if changed:
-            self.host.limits_changed()  # the maxima are remembered at once (MS-111)
+            self.controller.limits_changed()  # the maxima are remembered at once (MS-111)
         self._show(now)
         return reply
 
@@ -101,14 +101,14 @@ class Dled(Module, AutoSettings, TtlIn, LcdSegment, ControlChannel):
 
     def output(self) -> dict[str, int]:
         """What each channel emits now (%): its level, unless an IN0 mode keeps it dark."""
-        gated = self.host.card.ttl_in in GATED_MODES
+        gated = self.controller.card.ttl_in in GATED_MODES
         return {c: self.levels[c] if not gated or c in self.lit else 0 for c in CHANNELS}
 
     def _show(self, now: float) -> None:
         shown = self.output()
         if shown != self._shown:
             self._shown = shown
-            self.host.push_event({"ev": "led", "x": shown["X"], "y": shown["Y"], "t": now})
+            self.controller.push_event({"ev": "led", "x": shown["X"], "y": shown["Y"], "t": now})
 
     def _light(self, channels: set[str], now: float) -> None:
         self.lit = channels
@@ -141,7 +141,7 @@ class Dled(Module, AutoSettings, TtlIn, LcdSegment, ControlChannel):
             channels = {channel}
         self._light(channels, now)
         if mode in TIMED_MODES:
-            self._timer = self.host.at(now + self.host.card.rt_pulse_ms / 1000, self._timed_out)
+            self._timer = self.controller.at(now + self.controller.card.rt_pulse_ms / 1000, self._timed_out)
 
     def _timed_out(self, now: float) -> None:
         self._timer = None

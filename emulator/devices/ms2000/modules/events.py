@@ -3,7 +3,7 @@
 A module subscribes by decorating a method with `@on(EventClass)`; the method takes the event. The
 controller's `ModuleSet` builds its table (event class -> handlers, in the profile's module order)
 once, at construction, and `emit()` calls exactly the handlers of the event's class. A module sends
-an event to the others through `ModuleHost.emit()`: a new interaction between two modules is one
+an event to the others through `ModuleOwner.emit()`: a new interaction between two modules is one
 class here, an `emit` in one and an `@on` in the other.
 """
 

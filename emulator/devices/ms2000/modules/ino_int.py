@@ -17,7 +17,7 @@ from protocols.ms2000 import Fmt
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
     from emulator.devices.ms2000.scheduler import Timer
 
 REPEAT_RELATIVE, Z_STACK, REPORT, TOGGLE_OUT = 2, 4, 5, 10
@@ -30,8 +30,8 @@ class InoInt(Module, TtlIn, In0Interrupt, ControlChannel):
     in0_modes = frozenset({REPEAT_RELATIVE, Z_STACK, REPORT, TOGGLE_OUT})
     observable = "z_stack"
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.zs = dict(FACTORY_ZS)
         self.start_units = 0.0
         self.index = 0
@@ -79,7 +79,7 @@ class InoInt(Module, TtlIn, In0Interrupt, ControlChannel):
             "Z": Param(lambda: zs["mode"], setter("mode", int), one_of(0, 1)),
             "F": Param(lambda: zs["timeout_ms"], setter("timeout_ms", int), within(0, 65535, integer=True)),
         }
-        return run_settings(call, params, "XYZF", self.host.render(call.key), self.host.ack())
+        return run_settings(call, params, "XYZF", self.controller.render(call.key), self.controller.ack())
 
     @on(In0ModeChanged)
     def in0_mode_changed(self, event: In0ModeChanged) -> None:
@@ -96,38 +96,38 @@ class InoInt(Module, TtlIn, In0Interrupt, ControlChannel):
         elif mode == REPORT:
             if self._report is None:
                 self._report_start = now
-                self._report = self.host.at(now + self._period(), self._send_report)
+                self._report = self.controller.at(now + self._period(), self._send_report)
             else:
                 self._stop_reports()
         elif mode == TOGGLE_OUT:
-            self.host.toggle_out0(now)
+            self.controller.toggle_out0(now)
 
     # ---- mode 2 -------------------------------------------------------------------------------
 
     def _repeat_relative(self, now: float) -> None:
-        host = self.host
-        moves = [(host.axis_named(letter), units) for letter, units in host.last_relative]
-        focus = host.focus_axis()
+        controller = self.controller
+        moves = [(controller.axis_named(letter), units) for letter, units in controller.last_relative]
+        focus = controller.focus_axis()
         if not moves and focus is not None and self.zs["step"]:
             moves = [(focus, self.zs["step"])]
         goals = [
-            (axis, host.relative_goal(axis, (units or 0.0) / axis.s.unit_multiplier, now))
+            (axis, controller.relative_goal(axis, (units or 0.0) / axis.s.unit_multiplier, now))
             for axis, units in moves
             if axis is not None
         ]
-        host.start_moves(goals, now)
+        controller.start_moves(goals, now)
 
     # ---- mode 4 -------------------------------------------------------------------------------
 
     def _restart_stack(self, now: float) -> None:
-        focus = self.host.focus_axis()
+        focus = self.controller.focus_axis()
         self.start_units = focus.units(now) if focus is not None else 0.0
         self.index = 0
         self.direction = 1
         self.last_edge = None
 
     def _stack_step(self, now: float) -> None:
-        focus = self.host.focus_axis()
+        focus = self.controller.focus_axis()
         if focus is None:
             return
         timed_out = self.last_edge is not None and (now - self.last_edge) * 1000 > self.zs["timeout_ms"]
@@ -145,20 +145,20 @@ class InoInt(Module, TtlIn, In0Interrupt, ControlChannel):
                 self.direction = 1
             self.index += self.direction
         goal = self.start_units + self.index * self.zs["step"]
-        self.host.start_moves([(focus, focus.counts_of_units(goal))], now)
+        self.controller.start_moves([(focus, focus.counts_of_units(goal))], now)
 
     # ---- mode 5 -------------------------------------------------------------------------------
 
     def _period(self) -> float:
-        return self.host.card.rt_report_ms / 1000
+        return self.controller.card.rt_report_ms / 1000
 
     def _send_report(self, now: float) -> None:
         ms = round_half_away((now - self._report_start) * 1000)
-        fields = [self.host.where(a.units(now)) for a in self.host.report_axes()]
+        fields = [self.controller.where(a.units(now)) for a in self.controller.report_axes()]
         # e.g. TRACKING's PMT sum (MS-TRACK-3)
-        fields += [f for m in self.host.modules_of(ReportFields) for f in m.report_fields(now)]
-        self.host.unsolicited(" ".join([str(ms), *fields]), now)
-        self._report = self.host.at(now + self._period(), self._send_report)
+        fields += [f for m in self.controller.modules_of(ReportFields) for f in m.report_fields(now)]
+        self.controller.unsolicited(" ".join([str(ms), *fields]), now)
+        self._report = self.controller.at(now + self._period(), self._send_report)
 
     def _stop_reports(self) -> None:
         if self._report is not None:

@@ -19,7 +19,7 @@ from emulator.profiles.schema import Choice, Field
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
 
 PWM_MODE = 9
 FACTORY = {"X": 0, "Y": 0, "Z": 0, "F": 0}
@@ -41,8 +41,8 @@ class LedDimmer(Module, TtlOut, LcdSegment, ControlChannel):
     out0_modes = frozenset({PWM_MODE})
     observable = "led"
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.values = dict(FACTORY)
 
     def handlers(self) -> dict[str, Handler]:
@@ -56,7 +56,7 @@ class LedDimmer(Module, TtlOut, LcdSegment, ControlChannel):
         def setter(letter: str) -> Any:
             def store(value: float) -> None:
                 values[letter] = int(value)
-                self.host.refresh_out0(now)
+                self.controller.refresh_out0(now)
 
             return store
 
@@ -64,11 +64,11 @@ class LedDimmer(Module, TtlOut, LcdSegment, ControlChannel):
             letter: Param(partial(values.__getitem__, letter), setter(letter), within(0, FULL, integer=True))
             for letter in "XYZF"
         }
-        return run_settings(call, params, "XYZF", self.host.render(call.key), self.host.ack())
+        return run_settings(call, params, "XYZF", self.controller.render(call.key), self.controller.ack())
 
     @on(TtlTrailingValue)
     def ttl_trailing_value(self, event: TtlTrailingValue) -> None:
-        value, apply = event.value, self.host.knobs.ttl_pwm_trailing_value == "apply"
+        value, apply = event.value, self.controller.knobs.ttl_pwm_trailing_value == "apply"
         if event.out_mode == PWM_MODE and apply and 0 <= value <= FULL:
             self.values["X"] = round_half_away(value)
 

@@ -25,7 +25,7 @@ from emulator.devices.ms2000.modules.capabilities import (
 from emulator.devices.ms2000.modules.events import Event
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
     from protocols.ms2000 import Shape
 
 T = TypeVar("T")
@@ -61,10 +61,10 @@ class ModuleSet:
        base settings command as it runs), and any capability through `get()`/`all_of()`.
     """
 
-    def __init__(self, host: ModuleHost, names: Sequence[str]) -> None:
+    def __init__(self, controller: ModuleOwner, names: Sequence[str]) -> None:
         #: the profile's list, feature flags (LL COMMANDS) included
         self.names = tuple(names)
-        self._modules = [MODULES[n](host) for n in self.names if n in MODULES]
+        self._modules = [MODULES[n](controller) for n in self.names if n in MODULES]
         self._found: dict[type, tuple[Any, ...]] = {}
         self._by_priority = sorted(self.all_of(PanelButtons), key=lambda m: m.button_priority)
         table: dict[type[Event], list[Callable[[Any], None]]] = {}

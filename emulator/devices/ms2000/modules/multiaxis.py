@@ -39,7 +39,7 @@ from protocols.ms2000 import ErrorCode, Fmt, Kind
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
     from emulator.devices.ms2000.scheduler import Timer
     from emulator.devices.ms2000.trajectory import Segment
 
@@ -61,8 +61,8 @@ class MultiaxisMoves(Module, CommandVeto, LcdSegment, ControlChannel):
     name = "MULTIAXIS MOVES"
     observable = "multi"
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.params = dict(FACTORY)
         self.state = IDLE
         self.motion: PathMotion | None = None
@@ -87,11 +87,11 @@ class MultiaxisMoves(Module, CommandVeto, LcdSegment, ControlChannel):
 
     def mm(self, call: Call) -> Reply:
         """MULTIMV (MS-MULTI-1, MS-MULTI-2)."""
-        host = self.host
+        controller = self.controller
         now = call.now
         if not [i for i in call.items if i.kind is not Kind.NUMBER]:
             self.start(now)
-            return host.ack()
+            return controller.ack()
 
         def setter(letter: str) -> Any:
             return lambda value: self.params.__setitem__(letter, value)
@@ -110,7 +110,7 @@ class MultiaxisMoves(Module, CommandVeto, LcdSegment, ControlChannel):
         }
         saved = dict(self.params)
         try:
-            return run_settings(call, params, "XYZFR", host.render(call.key), host.ack())
+            return run_settings(call, params, "XYZFR", controller.render(call.key), controller.ack())
         except CommandError:
             self.params = saved  # `R=82` failing to start leaves the letters set before it unset
             raise
@@ -141,7 +141,7 @@ class MultiaxisMoves(Module, CommandVeto, LcdSegment, ControlChannel):
     def start(self, now: float) -> None:
         """Start the pattern from the current position; `:N-5` when running, when an axis it needs
         is missing or busy, or without a radius and speed (a spiral also needs a width) [choice]."""
-        by_letter = {a.hw_letter: a for a in self.host.axes}
+        by_letter = {a.hw_letter: a for a in self.controller.axes}
         x, y, z = (by_letter.get(letter) for letter in "XYZ")
         radius, speed, width = self.params["X"], self.params["Y"], self.params["Z"]
         pattern = self.pattern
@@ -198,7 +198,7 @@ class MultiaxisMoves(Module, CommandVeto, LcdSegment, ControlChannel):
         low, high = x.limit_counts()
         goal = min(max(goal_mm * c, low), high)
         if goal != goal_mm * c:
-            self.host.log_error(LIMIT_CODES[UPPER if goal == high else LOWER])
+            self.controller.log_error(LIMIT_CODES[UPPER if goal == high else LOWER])
             then = self._finish
         legs = trajectory.plan(now, x.pos(now), x.traj.vel(now), goal, speed * c, accel * c)
         for axis, _ in self.axes:
@@ -216,7 +216,7 @@ class MultiaxisMoves(Module, CommandVeto, LcdSegment, ControlChannel):
 
     def _schedule(self, due: float, action: Any) -> None:
         self._cancel()
-        self._timer = self.host.at(due, action)
+        self._timer = self.controller.at(due, action)
 
     def _cancel(self) -> None:
         if self._timer is not None:
@@ -229,7 +229,7 @@ class MultiaxisMoves(Module, CommandVeto, LcdSegment, ControlChannel):
         assert motion is not None
         samples = [motion.now]
         while len(samples) <= CHUNK_STEPS and not motion.finished:
-            samples.append(motion.step(self.host.servo_s))
+            samples.append(motion.step(self.controller.servo_s))
         samples = self._within_limits(samples)
         self.samples = samples
         for axis, coordinate in self.axes:
@@ -248,7 +248,7 @@ class MultiaxisMoves(Module, CommandVeto, LcdSegment, ControlChannel):
                 low, high = axis.limit_counts()
                 counts = point[coordinate] * axis.counts_per_mm
                 if not low <= counts <= high:
-                    self.host.log_error(LIMIT_CODES[UPPER if counts > high else LOWER])
+                    self.controller.log_error(LIMIT_CODES[UPPER if counts > high else LOWER])
                     motion.finished = True
                     return samples[: max(n, 1)]
         return samples

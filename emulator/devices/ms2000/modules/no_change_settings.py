@@ -17,7 +17,7 @@ from emulator.devices.ms2000.modules.capabilities import CommandVeto, ControlCha
 from protocols.ms2000 import ErrorCode, Kind
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
 
 #: MS-109: command number -> command key (the numbers ASI's table shows legibly)
 COMMAND_NUMBERS = {
@@ -34,8 +34,8 @@ class NoChangeSettings(Module, ExtraParams, CommandVeto, ControlChannel):
     name = "NO CHANGE SETTINGS"
     observable = "no_change_settings"
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.protected: set[int] = set()
         self.last_code = 0
 

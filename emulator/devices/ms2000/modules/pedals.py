@@ -21,7 +21,7 @@ from protocols.ms2000 import Fmt
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
     from emulator.devices.ms2000.scheduler import Timer
 
 #: MS-PEDAL-1 defaults: 1 µm per tap [choice], 1 mm/s, multiplier 1
@@ -38,8 +38,8 @@ class Pedals(Module, ControlChannel):
     name = "PEDALS"
     inputs = frozenset({"pedal"})
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.values = dict(FACTORY)
         self._release: Timer | None = None
 
@@ -58,7 +58,7 @@ class Pedals(Module, ControlChannel):
             "Y": Param(lambda: values["rate"], setter("rate", int), within(1, 100, integer=True)),
             "Z": Param(lambda: values["multiplier"], setter("multiplier", int), within(1, 100, integer=True)),
         }
-        return run_settings(call, params, "XYZ", self.host.render(call.key), self.host.ack())
+        return run_settings(call, params, "XYZ", self.controller.render(call.key), self.controller.ack())
 
     @on(Reset)
     def reset(self, event: Reset) -> None:
@@ -82,17 +82,17 @@ class Pedals(Module, ControlChannel):
         ms = params.get("ms", 100.0)
         if isinstance(ms, bool) or not isinstance(ms, int | float) or not 0 <= ms <= MAX_PRESS_MS:
             raise ControlError(f"pedal: ms must be a number in 0…{MAX_PRESS_MS:g}, got {ms!r}")
-        axis = self.host.focus_axis()
+        axis = self.controller.focus_axis()
         if axis is None or not axis.s.manual_enabled:
             return False
         sign = DIRECTION[which] * axis.s.polarity
         self._cancel_release()
         if ms < TAP_MS:
             step = sign * self.values["step_mm"] * axis.counts_per_mm
-            self._release = self.host.at(now + ms / 1000, lambda due: self._tap(axis, step, due))
+            self._release = self.controller.at(now + ms / 1000, lambda due: self._tap(axis, step, due))
         else:
             axis.manual(now, sign * min(float(self.values["rate"]), axis.max_speed))
-            self._release = self.host.at(now + ms / 1000, lambda due: self._let_go(axis, due))
+            self._release = self.controller.at(now + ms / 1000, lambda due: self._let_go(axis, due))
         return True
 
     def _tap(self, axis: Axis, step_counts: float, t: float) -> None:

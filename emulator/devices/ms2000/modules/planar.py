@@ -31,7 +31,7 @@ from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
 
 #: `CCB Z=` operations (MS-PC-1)
 FIT_AND_ENABLE, DISABLE, READ_PHYSICAL, CLEAR = 4, 5, 6, 7
@@ -71,8 +71,8 @@ class PlanarCorrection(Module, PanelButtons, LcdSegment, ControlChannel):
     button_priority = 60  # MS-85: after AUTOFOCUS, before RING BUFFER
     observable = "planar"
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         #: points 1–3 in machine mm (x, y, physical z)
         self.points: dict[int, tuple[float, float, float]] = {}
         self.plane: Plane | None = None
@@ -82,7 +82,7 @@ class PlanarCorrection(Module, PanelButtons, LcdSegment, ControlChannel):
         self._active: Plane | None = None
 
     def _axes(self) -> tuple[Axis, Axis, Axis] | None:
-        by_letter = {a.hw_letter: a for a in self.host.axes}
+        by_letter = {a.hw_letter: a for a in self.controller.axes}
         x, y, z = (by_letter.get(letter) for letter in "XYZ")
         return (x, y, z) if x is not None and y is not None and z is not None else None
 
@@ -136,7 +136,7 @@ class PlanarCorrection(Module, PanelButtons, LcdSegment, ControlChannel):
         )
         item = items[-1]  # a repeated letter: the last wins (MS-27)
         if item.kind is Kind.QUERY:
-            return self.host.render(call.key).items([("Z", self.state())])
+            return self.controller.render(call.key).items([("Z", self.state())])
         value = number(item)
         if value not in range(1, 8):
             raise CommandError(ErrorCode.OUT_OF_RANGE)
@@ -151,10 +151,12 @@ class PlanarCorrection(Module, PanelButtons, LcdSegment, ControlChannel):
         elif operation == DISABLE:
             self.disable(call.now)
         elif operation == READ_PHYSICAL:
-            return self.host.render(call.key, Shape.A_LIST).items([("", str(self.physical_units(call.now)))])
+            return self.controller.render(call.key, Shape.A_LIST).items(
+                [("", str(self.physical_units(call.now)))]
+            )
         else:
             self.clear(call.now)
-        return self.host.ack()
+        return self.controller.ack()
 
     def physical_units(self, now: float) -> int:
         """Z's actual position in units, correction included (MS-PC-1, MS-PC-2)."""
@@ -227,8 +229,8 @@ class PlanarCorrection(Module, PanelButtons, LcdSegment, ControlChannel):
         if name == "joystick" and press == EXTRA and not self.enabled:
             self.select(now)
             return True
-        home_ms = HOME_MS_WITH_RING_BUFFER if "RING BUFFER" in self.host.cfg.modules else HOME_MS
-        if name == "home" and self.host.button_held_ms >= home_ms:
+        home_ms = HOME_MS_WITH_RING_BUFFER if "RING BUFFER" in self.controller.cfg.modules else HOME_MS
+        if name == "home" and self.controller.button_held_ms >= home_ms:
             self.disable_or_reset(now)
             return True
         return False

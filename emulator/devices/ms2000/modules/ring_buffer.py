@@ -39,7 +39,7 @@ from emulator.profiles.schema import Bool, Choice, Field
 from protocols.ms2000 import ErrorCode, Kind
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
     from emulator.devices.ms2000.scheduler import Timer
 
 FACTORY_MASK = 3  # X and Y (MS-RB-4)
@@ -64,9 +64,9 @@ class RingBuffer(Module, ReportAxes, Playback, TtlIn, PanelButtons, LcdSegment, 
     button_priority = 70
     observable = "ring_buffer"
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
-        self.size: int = host.cfg.ring_buffer_size
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
+        self.size: int = controller.cfg.ring_buffer_size
         self.slots: list[dict[str, float]] = []
         self.pointer = 0
         self.axis_mask = self._factory_mask()
@@ -74,7 +74,7 @@ class RingBuffer(Module, ReportAxes, Playback, TtlIn, PanelButtons, LcdSegment, 
         self._play: Timer | None = None
 
     def _factory_mask(self) -> int:
-        return min(FACTORY_MASK, (1 << len(self.host.axes)) - 1)
+        return min(FACTORY_MASK, (1 << len(self.controller.axes)) - 1)
 
     def handlers(self) -> dict[str, Handler]:
         return {"LD": self.load, "RM": self.rbmode}
@@ -83,7 +83,7 @@ class RingBuffer(Module, ReportAxes, Playback, TtlIn, PanelButtons, LcdSegment, 
         return {FN_NEXT: self.trigger, FN_STORE: self.store_here, FN_CLEAR: self.clear}
 
     def bu_line(self) -> str:
-        return f"{self.name} {self.size}" if self.host.knobs.bu_x_ring_buffer_size else self.name
+        return f"{self.name} {self.size}" if self.controller.knobs.bu_x_ring_buffer_size else self.name
 
     def lcd_segment(self, now: float) -> str | None:
         return f"RB {self.pointer}/{len(self.slots)}"
@@ -134,10 +134,10 @@ class RingBuffer(Module, ReportAxes, Playback, TtlIn, PanelButtons, LcdSegment, 
 
     def load(self, call: Call) -> Reply:
         """LOAD: store a position in the next slot; `L?` reads the slot at the pointer (MS-RB-2/3)."""
-        host = self.host
+        controller = self.controller
         slot: dict[str, float] = {}
         queries: list[str] = []
-        for axis, item in axis_items(call, host.axes):
+        for axis, item in axis_items(call, controller.axes):
             if item.kind is Kind.QUERY:
                 queries.append(axis.letter)
             elif item.kind is Kind.PLUS:
@@ -149,24 +149,24 @@ class RingBuffer(Module, ReportAxes, Playback, TtlIn, PanelButtons, LcdSegment, 
                 raise CommandError(ErrorCode.OUT_OF_RANGE)
             self.slots.append(slot)
         if not queries:
-            return host.ack()
+            return controller.ack()
         current = self.slots[self.pointer] if self.slots else {}
         pairs = []
-        for axis in host.axes:
+        for axis in controller.axes:
             if axis.letter in queries:
                 units = current.get(axis.hw_letter, axis.units(call.now) if current else 0.0)
-                pairs.append((axis.letter, host.where(units)))
-        return host.render(call.key).items(pairs)
+                pairs.append((axis.letter, controller.where(units)))
+        return controller.render(call.key).items(pairs)
 
     def rbmode(self, call: Call) -> Reply:
         """RBMODE: X clear/count, Y axes, Z pointer, F mode; bare RM is a trigger (MS-RB-4/5)."""
-        host = self.host
+        controller = self.controller
         if not [i for i in call.items if i.kind is not Kind.NUMBER]:
-            host.in0_function(host.card.ttl_in or 1, call.now)
-            return host.ack()
+            controller.in0_function(controller.card.ttl_in or 1, call.now)
+            return controller.ack()
 
         # `RM X=1` starts ARRAY's commanded stepping; without a module serving it `:N-4` (MS-ARRAY-6)
-        starts = one_of(0, *(v for m in host.modules_of(RmXServer) for v in m.rm_x_values))
+        starts = one_of(0, *(v for m in controller.modules_of(RmXServer) for v in m.rm_x_values))
 
         def pointer(value: float) -> float:
             if value != int(value) or not 0 <= value <= max(len(self.slots) - 1, 0):
@@ -174,7 +174,7 @@ class RingBuffer(Module, ReportAxes, Playback, TtlIn, PanelButtons, LcdSegment, 
             return value
 
         def mask(value: float) -> float:
-            if value != int(value) or not 1 <= value <= (1 << len(host.axes)) - 1:
+            if value != int(value) or not 1 <= value <= (1 << len(controller.axes)) - 1:
                 raise CommandError(ErrorCode.OUT_OF_RANGE)
             return value
 
@@ -189,7 +189,7 @@ class RingBuffer(Module, ReportAxes, Playback, TtlIn, PanelButtons, LcdSegment, 
             "Z": Param(lambda: self.pointer, self._set_pointer, pointer),
             "F": Param(lambda: self.mode | (AUTOPLAY_FLAG if self.playing else 0), self._set_mode, mode),
         }
-        return run_settings(call, params, "XYZF", host.render(call.key), host.ack())
+        return run_settings(call, params, "XYZF", controller.render(call.key), controller.ack())
 
     def _set_mode(self, value: float) -> None:
         self.mode = int(value)
@@ -201,7 +201,7 @@ class RingBuffer(Module, ReportAxes, Playback, TtlIn, PanelButtons, LcdSegment, 
     def _rm_x(self, value: int, now: float) -> None:
         if value == 0:
             self.clear(now)
-        self.host.emit(RmX(now, value))
+        self.controller.emit(RmX(now, value))
 
     def playback_mode(self) -> int:
         return self.mode
@@ -230,7 +230,7 @@ class RingBuffer(Module, ReportAxes, Playback, TtlIn, PanelButtons, LcdSegment, 
 
     def store_here(self, now: float) -> None:
         if len(self.slots) < self.size:
-            self.slots.append({a.hw_letter: a.units(now) for a in self.host.axes})
+            self.slots.append({a.hw_letter: a.units(now) for a in self.controller.axes})
 
     def trigger(self, now: float) -> None:
         if not self.slots:
@@ -247,10 +247,10 @@ class RingBuffer(Module, ReportAxes, Playback, TtlIn, PanelButtons, LcdSegment, 
         self.pointer = (self.pointer + 1) % len(self.slots)
         goals = [
             (a, a.counts_of_units(slot[a.hw_letter]))
-            for a in self.host.axes
+            for a in self.controller.axes
             if self.axis_mask & (1 << a.index) and a.hw_letter in slot
         ]
-        self.host.start_moves(goals, now)
+        self.controller.start_moves(goals, now)
 
     def _autoplay(self, now: float) -> None:
         self._play = None
@@ -258,5 +258,5 @@ class RingBuffer(Module, ReportAxes, Playback, TtlIn, PanelButtons, LcdSegment, 
         if self.pointer == 0 and self.mode == 2:
             return
         # `RT Z=0` is allowed: the next step still waits one servo period rather than loop forever
-        interval = max(self.host.card.rt_delay_ms / 1000, self.host.servo_s)
-        self._play = self.host.at(now + interval, self._autoplay)
+        interval = max(self.controller.card.rt_delay_ms / 1000, self.controller.servo_s)
+        self._play = self.controller.at(now + interval, self._autoplay)

@@ -34,7 +34,7 @@ from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
     from emulator.devices.ms2000.scheduler import Timer
 
 ENC_INT = "ENC_INT"
@@ -74,9 +74,9 @@ class ScanModule(Module, PanelButtons, LcdSegment, ControlChannel):
     observable = "scan"
     inputs = frozenset({"scan_drop_pulses"})
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
-        self.roles = shared_roles(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
+        self.roles = shared_roles(controller)
         self.range = dict(FACTORY_RANGE)  # NR
         self.lines = dict(FACTORY_LINES)  # NV
         self.state = IDLE
@@ -127,7 +127,7 @@ class ScanModule(Module, PanelButtons, LcdSegment, ControlChannel):
         data = data or {}
         self.range = _restored(FACTORY_RANGE, data.get("range"))
         self.lines = _restored(FACTORY_LINES, data.get("lines"))
-        self.roles.restore(data, self.host)
+        self.roles.restore(data, self.controller)
 
     @on(Reset)
     def reset(self, event: Reset) -> None:
@@ -138,7 +138,7 @@ class ScanModule(Module, PanelButtons, LcdSegment, ControlChannel):
     def halt(self, event: Halt) -> None:
         """HALT has stopped the axes: the scan ends at once (86 when one was running)."""
         if self.running:
-            self.host.log_error(SCAN_ABORTED)
+            self.controller.log_error(SCAN_ABORTED)
         self._finish(IDLE)
 
     # ---- settings (MS-SCAN-1…MS-SCAN-3) ---------------------------------------------------------
@@ -148,13 +148,13 @@ class ScanModule(Module, PanelButtons, LcdSegment, ControlChannel):
         without exactly one fast axis `:N-5` (MS-SCAN-1)."""
         if [i for i in call.items if i.kind is not Kind.NUMBER]:
             return run_settings(
-                call, self.roles.params(), "XYZF", self.host.render(call.key), self.host.ack()
+                call, self.roles.params(), "XYZF", self.controller.render(call.key), self.controller.ack()
             )
         if self.running:
             self.stop(call.now)
         elif not self.start(call.now):
             raise CommandError(ErrorCode.FAILED)
-        return self.host.ack()
+        return self.controller.ack()
 
     def scanr(self, call: Call) -> Reply:
         """SCANR: X start, Y stop (mm), Z divide, F pixels (replaces the stop) (MS-SCAN-2)."""
@@ -170,7 +170,7 @@ class ScanModule(Module, PanelButtons, LcdSegment, ControlChannel):
             "Z": Param(lambda: values["divide"], setter("divide"), whole(MIN_DIVIDE, MAX_COUNT)),
             "F": Param(self.pixels, lambda v: pixels.append(int(v)), whole(1, MAX_COUNT)),
         }
-        reply = run_settings(call, params, "XYZF", self.host.render(call.key), self.host.ack())
+        reply = run_settings(call, params, "XYZF", self.controller.render(call.key), self.controller.ack())
         if pixels:  # with the start and divide of the same command, whatever the item order
             values["stop"] = values["start"] + pixels[-1] * self.divide_step() / self._counts_per_mm()
         return reply
@@ -188,7 +188,7 @@ class ScanModule(Module, PanelButtons, LcdSegment, ControlChannel):
             "Z": Param(lambda: values["lines"], setter("lines"), whole(1, MAX_COUNT)),
             "F": Param(lambda: values["overshoot"], setter("overshoot"), within(0, MAX_OVERSHOOT), Fmt.F6),
         }
-        return run_settings(call, params, "XYZF", self.host.render(call.key), self.host.ack())
+        return run_settings(call, params, "XYZF", self.controller.render(call.key), self.controller.ack())
 
     def divide_step(self) -> int:
         """The divide the pulses follow: a multiple of 4 counts, rounded down (MS-SCAN-2)."""
@@ -197,11 +197,13 @@ class ScanModule(Module, PanelButtons, LcdSegment, ControlChannel):
 
     def _fast_axis(self) -> Axis | None:
         """The scan's fast axis; while `SN` names none, the jumper axis [choice]."""
-        return self.roles.axis_with(FAST, self.host) or self.host.axis_named(self.host.cfg.scan_jumper_axis)
+        return self.roles.axis_with(FAST, self.controller) or self.controller.axis_named(
+            self.controller.cfg.scan_jumper_axis
+        )
 
     def _counts_per_mm(self) -> float:
         axis = self._fast_axis()
-        return axis.counts_per_mm if axis is not None else self.host.axes[0].counts_per_mm
+        return axis.counts_per_mm if axis is not None else self.controller.axes[0].counts_per_mm
 
     def pixels(self) -> int:
         """Pixels per line: floor(C × |stop − start| / divide) (MS-SCAN-2)."""
@@ -210,7 +212,7 @@ class ScanModule(Module, PanelButtons, LcdSegment, ControlChannel):
 
     def counting(self) -> bool:
         """Pixel pulses need ENC_INT with its interrupt enabled, `TTL X=1` (MS-SCAN-4)."""
-        return ENC_INT in self.host.cfg.modules and self.host.card.ttl_in == COUNTING_MODE
+        return ENC_INT in self.controller.cfg.modules and self.controller.card.ttl_in == COUNTING_MODE
 
     # ---- running (MS-SCAN-4…MS-SCAN-7) ----------------------------------------------------------
 
@@ -222,10 +224,10 @@ class ScanModule(Module, PanelButtons, LcdSegment, ControlChannel):
 
     def start(self, now: float) -> bool:
         """Plan the scan and start its first move; False without exactly one fast axis."""
-        fast = self.roles.axis_with(FAST, self.host)
+        fast = self.roles.axis_with(FAST, self.controller)
         if fast is None:
             return False
-        slow = self.roles.axis_with(SLOW, self.host)
+        slow = self.roles.axis_with(SLOW, self.controller)
         area = ScanArea(
             self.range["start"],
             self.range["stop"],
@@ -245,7 +247,7 @@ class ScanModule(Module, PanelButtons, LcdSegment, ControlChannel):
         when it rests (state P until then), logging 86; that line logs nothing else (MS-SCAN-6)."""
         if not self.running:
             return
-        self.host.log_error(SCAN_ABORTED)
+        self.controller.log_error(SCAN_ABORTED)
         self._cancel_timers()
         self.state = STOPPING
         if 0 <= self.leg < len(self.legs):
@@ -271,7 +273,7 @@ class ScanModule(Module, PanelButtons, LcdSegment, ControlChannel):
         leg = self.legs[self.leg]
         self.state = leg.state
         goal = float(round_half_away(leg.axis.counts_of(leg.goal_mm)))
-        self.host.start_scan_move(leg.axis, goal, now, leg.speed_mm_s)
+        self.controller.start_scan_move(leg.axis, goal, now, leg.speed_mm_s)
         if leg.sweep is not None:
             self._time_sweep(leg.axis, leg.sweep, now)
 
@@ -283,16 +285,16 @@ class ScanModule(Module, PanelButtons, LcdSegment, ControlChannel):
         end = axis.counts_of(sweep.end_mm)
         at_begin = axis.traj.first_reach(begin, now)
         at_end = axis.traj.first_reach(end, at_begin if at_begin is not None else now)
-        wired = axis.hw_letter == self.host.cfg.scan_jumper_axis
+        wired = axis.hw_letter == self.controller.cfg.scan_jumper_axis
         pulses = abs(round_half_away(end) - round_half_away(begin)) // self.divide_step() if wired else 0
         done = at_end if at_end is not None else axis.traj.end
         # the previous line's timers have all run by now
-        self._timers = [self.host.at(done, lambda t: self._line_end(sweep.line, pulses, t))]
+        self._timers = [self.controller.at(done, lambda t: self._line_end(sweep.line, pulses, t))]
         if wired and at_begin is not None:
-            self._timers.append(self.host.at(at_begin, lambda t: self._sync(sweep.line, t)))
+            self._timers.append(self.controller.at(at_begin, lambda t: self._sync(sweep.line, t)))
 
     def _sync(self, line: int, now: float) -> None:
-        self.host.push_event({"ev": "scan_sync", "line": line, "t": now})
+        self.controller.push_event({"ev": "scan_sync", "line": line, "t": now})
 
     def _line_end(self, line: int, pulses: int, now: float) -> None:
         """The pulses the counter saw, less any dropped; 85 when they are not the expected count."""
@@ -301,9 +303,9 @@ class ScanModule(Module, PanelButtons, LcdSegment, ControlChannel):
         dropped = min(self.drop_pending, pulses)
         self.drop_pending -= dropped
         count = pulses - dropped
-        self.host.push_event({"ev": "scan_pixels", "line": line, "count": count, "t": now})
+        self.controller.push_event({"ev": "scan_pixels", "line": line, "count": count, "t": now})
         if count != self.pixels():
-            self.host.log_error(PIXELS_WRONG)
+            self.controller.log_error(PIXELS_WRONG)
 
     @on(MoveComplete)
     def move_complete(self, event: MoveComplete) -> None:

@@ -17,7 +17,7 @@ from emulator.devices.ms2000.calls import Param, one_of
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
 
 SCAN_MODULE = "SCAN MODULE"
 ROLE_LETTERS = "XYZ"
@@ -26,9 +26,9 @@ RASTER, SERPENTINE = 0, 1
 FACTORY_ROLES = {"X": FAST, "Y": SLOW, "Z": UNUSED}
 
 
-def factory_pattern(host: ModuleHost) -> int:
+def factory_pattern(controller: ModuleOwner) -> int:
     """MS-SCAN-1: raster in builds with SCAN MODULE, serpentine in ARRAY-only builds."""
-    return RASTER if SCAN_MODULE in host.cfg.modules else SERPENTINE
+    return RASTER if SCAN_MODULE in controller.cfg.modules else SERPENTINE
 
 
 @dataclass
@@ -36,10 +36,10 @@ class ScanRoles:
     pattern: int
     roles: dict[str, int] = field(default_factory=lambda: dict(FACTORY_ROLES))
 
-    def axis_with(self, role: int, host: ModuleHost) -> Axis | None:
+    def axis_with(self, role: int, controller: ModuleOwner) -> Axis | None:
         """The one motor axis given `role`; None when no axis or several have it."""
         letters = [letter for letter in ROLE_LETTERS if self.roles[letter] == role]
-        return host.axis_named(letters[0]) if len(letters) == 1 else None
+        return controller.axis_named(letters[0]) if len(letters) == 1 else None
 
     def params(self) -> dict[str, Param]:
         """`SN X/Y/Z` roles and `SN F` pattern: the letters are accepted whatever axes the build has
@@ -60,7 +60,7 @@ class ScanRoles:
     def save(self) -> dict[str, Any]:
         return {"roles": dict(self.roles), "pattern": self.pattern}
 
-    def restore(self, data: dict[str, Any], host: ModuleHost) -> None:
+    def restore(self, data: dict[str, Any], controller: ModuleOwner) -> None:
         """The saved roles and pattern (factory values for anything missing or unusable)."""
         roles = data.get("roles")
         self.roles = dict(FACTORY_ROLES)
@@ -69,15 +69,15 @@ class ScanRoles:
                 if letter in self.roles and role in (UNUSED, FAST, SLOW):
                     self.roles[letter] = role
         pattern = data.get("pattern")
-        self.pattern = pattern if pattern in (RASTER, SERPENTINE) else factory_pattern(host)
+        self.pattern = pattern if pattern in (RASTER, SERPENTINE) else factory_pattern(controller)
 
 
 _SHARED: WeakKeyDictionary[Any, ScanRoles] = WeakKeyDictionary()
 
 
-def shared_roles(host: ModuleHost) -> ScanRoles:
+def shared_roles(controller: ModuleOwner) -> ScanRoles:
     """The `SN` setting of the controller `host` (created at factory values on first use)."""
-    roles = _SHARED.get(host)
+    roles = _SHARED.get(controller)
     if roles is None:
-        roles = _SHARED[host] = ScanRoles(factory_pattern(host))
+        roles = _SHARED[controller] = ScanRoles(factory_pattern(controller))
     return roles

@@ -41,7 +41,7 @@ from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
 
 SEARCH_INDEX = "SEARCH INDEX"
 SEEK_LIMITS = "SEEK LIMITS"
@@ -66,9 +66,9 @@ class Seek:
 class _IndexSeek(Module, ControlChannel):
     inputs = frozenset({"index_missing"})
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
-        modules = list(host.cfg.modules)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
+        modules = list(controller.cfg.modules)
         first = next(n for n in modules if n in KIND_OF)
         #: only the first of the two modules listed serves `SI`, so one state serves both kinds
         self.serves = first == self.name
@@ -99,7 +99,7 @@ class _IndexSeek(Module, ControlChannel):
     def control_input(self, name: str, params: dict[str, Any], now: float) -> Any:
         """`index_missing {axis, missing}`: the axis's index mark cannot be found (MS-SI-1)."""
         letter = params.get("axis")
-        axis = self.host.axis_named(letter.upper()) if isinstance(letter, str) else None
+        axis = self.controller.axis_named(letter.upper()) if isinstance(letter, str) else None
         if axis is None:
             raise ControlError(f"index_missing: axis must be a motor axis letter, got {letter!r}")
         missing = params.get("missing", True)
@@ -115,8 +115,8 @@ class _IndexSeek(Module, ControlChannel):
 
     def si(self, call: Call) -> Reply | Pending:
         """SI: search index (linear axes) or seek limit (rotary axes) (MS-SI-1…MS-SI-3)."""
-        host = self.host
-        picked = axis_items(call, host.axes)
+        controller = self.controller
+        picked = axis_items(call, controller.axes)
         if any(axis.cfg.encoder not in self.kinds for axis, _ in picked):
             raise CommandError(ErrorCode.UNKNOWN_COMMAND)
         queries = [axis for axis, item in picked if item.kind is Kind.QUERY]
@@ -133,9 +133,9 @@ class _IndexSeek(Module, ControlChannel):
 
         def answer() -> Reply:
             if not queries:
-                return host.ack()
+                return controller.ack()
             pairs = [(a.letter, format_value(self.last.get(a.hw_letter, 0), Fmt.I)) for a in queries]
-            return host.render(call.key).items(pairs)
+            return controller.render(call.key).items(pairs)
 
         if not searches:
             return answer()
@@ -155,9 +155,9 @@ class _IndexSeek(Module, ControlChannel):
         self, searches: list[tuple[Axis, float]], now: float, answer: Callable[[], Reply]
     ) -> Pending:
         """Move to each index (the middle of the hardware travel [choice]); reply on arrival."""
-        host = self.host
+        controller = self.controller
         self.search = [(axis, p, _index_count(axis)) for axis, p in searches]
-        host.start_moves([(axis, float(count)) for axis, _, count in self.search], now, Activity.HOME)
+        controller.start_moves([(axis, float(count)) for axis, _, count in self.search], now, Activity.HOME)
         due = max([now, *(axis.traj.end for axis, _, _ in self.search)])
 
         def finish(t: float) -> Reply:
@@ -170,7 +170,7 @@ class _IndexSeek(Module, ControlChannel):
     def _found(self, axis: Axis, p: float, count: int, t: float) -> bool:
         """At the end of the search: set p at the index and the factory soft limits, if found."""
         if axis.hw_letter in self.missing:
-            self.host.log_error(INDEX_MISSING_CODE + axis.index)
+            self.controller.log_error(INDEX_MISSING_CODE + axis.index)
             return False
         if not axis.enabled or round_half_away(axis.pos(t)) != count:
             return False  # stopped on the way (limit switch, stall) or a disabled motor
@@ -179,8 +179,8 @@ class _IndexSeek(Module, ControlChannel):
         axis.auto.soft_lower = axis.cfg.soft_lower_mm
         axis.auto.soft_upper = axis.cfg.soft_upper_mm
         self.found[axis.hw_letter] = (p, count)
-        self.host.positions_changed()
-        self.host.limits_changed()
+        self.controller.positions_changed()
+        self.controller.limits_changed()
         return True
 
     # ---- SEEK LIMITS (MS-SI-2) ----------------------------------------------------------------
@@ -191,7 +191,7 @@ class _IndexSeek(Module, ControlChannel):
         goal = limit
         if seek.leg == BACK_OFF:
             goal = round_half_away(axis.pos(now) - seek.direction * BACK_OFF_MM * axis.counts_per_mm)
-        self.host.start_moves([(axis, float(goal))], now, Activity.HOME)
+        self.controller.start_moves([(axis, float(goal))], now, Activity.HOME)
         seek.target = axis.target  # after clamping to the limits
         self.seeks[axis.hw_letter] = seek
 
@@ -199,7 +199,7 @@ class _IndexSeek(Module, ControlChannel):
     def move_complete(self, event: MoveComplete) -> None:
         axes = event.axes
         now = event.t
-        for axis in self.host.axes:
+        for axis in self.controller.axes:
             seek = self.seeks.get(axis.hw_letter)
             if seek is None or axis.letter not in axes:
                 continue

@@ -33,7 +33,7 @@ from emulator.devices.ms2000.modules.events import Reset, on
 from protocols.ms2000 import ErrorCode, Fmt, Kind
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
     from emulator.devices.ms2000.scheduler import Timer
 
 LOCK_OUT_MODE = 9
@@ -49,8 +49,8 @@ class _Secure(Module, TtlOut, LcdSegment, ControlChannel):
     out0_modes = frozenset({LOCK_OUT_MODE})
     observable = "secure"
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.position = 0.0
 
     @property
@@ -68,8 +68,8 @@ class _Secure(Module, TtlOut, LcdSegment, ControlChannel):
 class SolenoidLock(_Secure):
     name = "SOL_LK"
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.values = dict(SOLENOID_FACTORY)
         self.pulling_in = False
         self._timers: list[Timer] = []
@@ -95,7 +95,7 @@ class SolenoidLock(_Secure):
             "F": Param(lambda: values["F"], setter("F"), within(0, 255, integer=True)),
             "T": Param(lambda: values["T"], setter("T"), within(0, 65000, integer=True)),
         }
-        return run_settings(call, params, "XYZFT", self.host.render(call.key), self.host.ack())
+        return run_settings(call, params, "XYZFT", self.controller.render(call.key), self.controller.ack())
 
     def _set_lock(self, x: int, now: float) -> None:
         self._cancel_timers()
@@ -103,14 +103,14 @@ class SolenoidLock(_Secure):
         self.position = float(x == UNLOCKED)
         self.pulling_in = x == UNLOCKED and self.values["T"] > 0
         if self.pulling_in:
-            self._timers.append(self.host.at(now + self.values["T"] / 1000, self._hold))
+            self._timers.append(self.controller.at(now + self.values["T"] / 1000, self._hold))
         if x == UNLOCKED and self.values["F"]:
-            self._timers.append(self.host.at(now + self.values["F"] * 60, self._auto_lock))
-        self.host.refresh_out0(now)
+            self._timers.append(self.controller.at(now + self.values["F"] * 60, self._auto_lock))
+        self.controller.refresh_out0(now)
 
     def _hold(self, t: float) -> None:
         self.pulling_in = False
-        self.host.refresh_out0(t)
+        self.controller.refresh_out0(t)
 
     def _auto_lock(self, t: float) -> None:
         self._set_lock(0, t)
@@ -151,10 +151,10 @@ class ServoLock(_Secure):
 
         def store(value: float) -> None:
             self.position = value
-            self.host.refresh_out0(now)
+            self.controller.refresh_out0(now)
 
         params = {"X": Param(lambda: self.position, store, within(0.0, 1.0), Fmt.F6)}
-        return run_settings(call, params, "X", self.host.render(call.key), self.host.ack())
+        return run_settings(call, params, "X", self.controller.render(call.key), self.controller.ack())
 
     def out0_level(self) -> int | None:
         return 1 if self.position > 0 else 0

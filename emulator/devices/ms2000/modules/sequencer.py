@@ -38,7 +38,7 @@ from protocols.ms2000 import ErrorCode, Item, Kind
 from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
     from emulator.devices.ms2000.scheduler import Timer
 
 #: BE F function: the sequencer's `@` event (Appendix B)
@@ -72,8 +72,8 @@ class Sequencer(Module, LcdLine, TtlOut, PanelButtons, ControlChannel):
     observable = "sequencer"
     inputs = frozenset({"sequencer"})
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.engine = Engine(self, Program())
         #: block-transition events on the control channel (`ARM Y`, MS-SEQ-6 [choice: on at reset])
         self.log = True
@@ -96,8 +96,8 @@ class Sequencer(Module, LcdLine, TtlOut, PanelButtons, ControlChannel):
 
     def control_input(self, name: str, params: dict[str, Any], now: float) -> Any:
         """`sequencer {blocks, outputs}` replaces the whole program, or changes nothing."""
-        axes = [a.letter for a in self.host.axes]
-        program = parse(params, self.host.cfg.modules, axes)
+        axes = [a.letter for a in self.controller.axes]
+        program = parse(params, self.controller.cfg.modules, axes)
         self.engine.initialise(False, now)
         self.engine = Engine(self, program)
         self._rest_outputs(now)
@@ -123,7 +123,7 @@ class Sequencer(Module, LcdLine, TtlOut, PanelButtons, ControlChannel):
         if not items:
             self.armed_at = call.now
             self.engine.outside(ARM_COMMAND, call.now)
-            return self.host.ack()
+            return self.controller.ack()
         codes: list[int] = []
         chosen: dict[str, Item] = {}
         for item in items:
@@ -148,8 +148,8 @@ class Sequencer(Module, LcdLine, TtlOut, PanelButtons, ControlChannel):
         if "Z" in chosen:
             self.stop(call.now)
         if log is not None and log.kind is Kind.QUERY:
-            return self.host.render(call.key).items([("Y", str(int(self.log)))])
-        return self.host.ack()
+            return self.controller.render(call.key).items([("Y", str(int(self.log)))])
+        return self.controller.ack()
 
     def reinitialise(self, now: float) -> None:
         """`ARM X`: blocks idle, ALWAYS blocks ready (and so started), outputs at rest."""
@@ -160,7 +160,7 @@ class Sequencer(Module, LcdLine, TtlOut, PanelButtons, ControlChannel):
     def stop(self, now: float) -> None:
         """`ARM Z`, `@` while running, a recursion error: every motion halts (MS-76) and the
         sequencer re-initialises with its ALWAYS blocks idle; the halt hook below does the latter."""
-        self.host.halt_all(now)
+        self.controller.halt_all(now)
 
     @on(Halt)
     def halt(self, event: Halt) -> None:
@@ -191,7 +191,7 @@ class Sequencer(Module, LcdLine, TtlOut, PanelButtons, ControlChannel):
         """XYZ_STAGE_NOT_BUSY: the busy→idle transition, seen when a move ends with nothing else
         still moving [choice]."""
         now = event.t
-        if not any(a.busy(now) for a in self.host.axes):
+        if not any(a.busy(now) for a in self.controller.axes):
             self.engine.outside(STAGE_NOT_BUSY, now)
 
     def button(self, name: str, press: str, now: float) -> bool:
@@ -213,51 +213,51 @@ class Sequencer(Module, LcdLine, TtlOut, PanelButtons, ControlChannel):
     # ---- what the engine does (sequencer_engine.EngineSide) --------------------------------------
 
     def at(self, due: float, action: Callable[[float], None]) -> Timer:
-        return self.host.at(due, action)
+        return self.controller.at(due, action)
 
     def transition(self, block: int, transition: str, repetition: int | None, now: float) -> None:
         if self.log:
             event: dict[str, Any] = {"ev": "seq_block", "block": block, "transition": transition, "t": now}
             if repetition is not None:
                 event["repetition"] = repetition
-            self.host.push_event(event)
+            self.controller.push_event(event)
 
     def recursion_error(self, now: float) -> None:
         """MS-SEQ-4: the sequencer stops as with `ARM Z` [choice: no error-log code is known]."""
-        self.host.push_event({"ev": "seq_recursion_error", "t": now})
+        self.controller.push_event({"ev": "seq_recursion_error", "t": now})
         self.stop(now)
 
     def act(self, action: int, now: float) -> None:
         """A completion action (MS-SEQ-5); module actions do what their IN0 function or `RM X=1` does."""
-        host = self.host
+        controller = self.controller
         if action == RING_BUFFER_NEXT:
-            host.in0_function(RING_BUFFER_IN0_MODE, now)
+            controller.in0_function(RING_BUFFER_IN0_MODE, now)
         elif action == AUTOFOCUS:
-            host.in0_function(AUTOFOCUS_IN0_MODE, now)
+            controller.in0_function(AUTOFOCUS_IN0_MODE, now)
         elif action == ARRAY_NEXT:
-            host.in0_function(ARRAY_IN0_MODE, now)
+            controller.in0_function(ARRAY_IN0_MODE, now)
         elif action == ARRAY_START:
-            host.emit(RmX(now, ARRAY_START_RM_X))
-        elif action >= SEND_WHERE and host.knobs.sequencer_send_actions == "emit":
+            controller.emit(RmX(now, ARRAY_START_RM_X))
+        elif action >= SEND_WHERE and controller.knobs.sequencer_send_actions == "emit":
             self._send(self._report(action, now), now)
 
     def _report(self, action: int, now: float) -> str:
         if action == SEND_WHERE:
-            return ":A " + " ".join(self.host.where(a.units(now)) for a in self.host.axes)
+            return ":A " + " ".join(self.controller.where(a.units(now)) for a in self.controller.axes)
         if action == SEND_TIME:
             return f"T {round_half_away((now - self.armed_at) * 1000)}"
         return "S " + " ".join(self.engine.state_chars())
 
     def _send(self, text: str, now: float) -> None:
         """After the reply of the command that caused it (a line is never cut into, MS-96)."""
-        self.host.at(now, lambda due: self.host.unsolicited(text, due))
+        self.controller.at(now, lambda due: self.controller.unsolicited(text, due))
 
     def output(self, output: Output, start: bool, now: float) -> None:
         if output.kind == "ttl":
             assert isinstance(output.index, int)
             self.ttl[output.index] = 1 if start else 0
             if output.index == 0:
-                self.host.refresh_out0(now)
+                self.controller.refresh_out0(now)
         elif output.kind == "avo":
             assert isinstance(output.index, int)
             value = self.avo.get(output.index, output.initial) + output.step_size if start else output.initial
@@ -267,23 +267,23 @@ class Sequencer(Module, LcdLine, TtlOut, PanelButtons, ControlChannel):
 
     def _stage(self, output: Output, step: bool, now: float) -> None:
         """STG: a commanded move by `step_size` units from the target, or back to `initial`."""
-        axis = self.host.axis_named(str(output.index))
+        axis = self.controller.axis_named(str(output.index))
         if axis is None:
             return
         if step:
-            goal = self.host.relative_goal(axis, output.step_size / axis.s.unit_multiplier, now)
+            goal = self.controller.relative_goal(axis, output.step_size / axis.s.unit_multiplier, now)
             self.stage_steps[axis.letter] = self.stage_steps.get(axis.letter, 0) + 1
         else:
             goal = round_half_away(axis.counts_of_units(output.initial))
             self.stage_steps[axis.letter] = 0
-        self.host.start_moves([(axis, float(goal))], now)
+        self.controller.start_moves([(axis, float(goal))], now)
 
     def _rest_outputs(self, now: float) -> None:
         """TTLs low, analog outputs at their start values, step counts 0."""
         self.ttl = [0] * TTL_COUNT
         self.avo = {int(o.index): o.initial for o in self.program.outputs if o.kind == "avo"}
         self.stage_steps = {str(o.index): 0 for o in self.program.outputs if o.kind == "stg"}
-        self.host.refresh_out0(now)
+        self.controller.refresh_out0(now)
 
     # ---- OUT0 and the LCD ------------------------------------------------------------------------
 

@@ -53,7 +53,7 @@ class Tracer(Module, ControlChannel):
 
     def observe(self, now: float) -> Any:
         """MS-TRACER-2: ready only at 115200 baud (the rate read from the DIP switches at power-up)."""
-        return {"ready": self.host.baud == TRACER_BAUD}
+        return {"ready": self.controller.baud == TRACER_BAUD}
 
     def observables(self) -> dict[str, Callable[[float], Any]]:
         return {**super().observables(), "analog_out_v": self.analog_out_v}
@@ -61,9 +61,9 @@ class Tracer(Module, ControlChannel):
     def analog_out_v(self, now: float) -> float:
         """MS-TRACER-4: the output follows the focus axis where it is (it ramps during a move). The
         soft limits are machine positions (MS-49), so the Z compared with them is too."""
-        axis = self.host.focus_axis()
+        axis = self.controller.focus_axis()
         if axis is None:
             return 0.0
         z_mm = axis.pos(now) / axis.counts_per_mm
-        polarity = self.host.knobs.tracer_analog_polarity
+        polarity = self.controller.knobs.tracer_analog_polarity
         return analog_volts(z_mm, axis.auto.soft_lower, axis.auto.soft_upper, polarity)

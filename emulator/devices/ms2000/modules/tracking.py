@@ -50,7 +50,7 @@ from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
     from emulator.devices.ms2000.scheduler import Timer
 
 IDLE, CALIBRATING, TRACKING, PAUSED, ERROR = "I", "C", "T", "P", "E"
@@ -85,8 +85,8 @@ class Tracking(Module, ReportFields, PanelButtons, LcdSegment, ControlChannel):
     observable = "tracking"
     inputs = frozenset({"pmt"})
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.settings = dict(FACTORY)
         self.state = IDLE
         self.reason: str | None = None
@@ -100,7 +100,7 @@ class Tracking(Module, ReportFields, PanelButtons, LcdSegment, ControlChannel):
     # ---- the PMT and the loop (MS-TRACK-3) ------------------------------------------------------
 
     def _xy(self) -> tuple[Axis | None, Axis | None]:
-        return self.host.axis_named("X"), self.host.axis_named("Y")
+        return self.controller.axis_named("X"), self.controller.axis_named("Y")
 
     def signal(self, now: float) -> tuple[float, float, float]:
         """(sum, ex, ey) where the stage is now."""
@@ -121,7 +121,7 @@ class Tracking(Module, ReportFields, PanelButtons, LcdSegment, ControlChannel):
             for axis, share in ((x, ex), (y, ey)):
                 if axis is not None:
                     self._move(axis, share * step_mm, now)
-        self._timer = self.host.at(now + LOOP_S, self._tick)
+        self._timer = self.controller.at(now + LOOP_S, self._tick)
 
     def _move(self, axis: Axis, mm: float, now: float) -> None:
         """Move by `mm` (user) as manual motion, carrying the part below a count to the next cycle."""
@@ -136,8 +136,8 @@ class Tracking(Module, ReportFields, PanelButtons, LcdSegment, ControlChannel):
         x, y = self._xy()
         watched = [(axis, self.settings["xy_range"]) for axis in (x, y) if axis is not None]
         index = int(self.settings["focus_index"])  # UL F
-        if self.settings["focus_enable"] and index < len(self.host.axes):
-            watched.append((self.host.axes[index], self.settings["z_range"]))
+        if self.settings["focus_enable"] and index < len(self.controller.axes):
+            watched.append((self.controller.axes[index], self.settings["z_range"]))
         return watched
 
     def _out_of_range(self, now: float) -> bool:
@@ -155,7 +155,7 @@ class Tracking(Module, ReportFields, PanelButtons, LcdSegment, ControlChannel):
             event: dict[str, Any] = {"ev": "tracking", "state": state, "t": now}
             if reason:
                 event["reason"] = reason
-            self.host.push_event(event)
+            self.controller.push_event(event)
         if state not in (TRACKING, PAUSED, CALIBRATING):
             self._cancel()
 
@@ -171,7 +171,7 @@ class Tracking(Module, ReportFields, PanelButtons, LcdSegment, ControlChannel):
         self.residue = {}
         total, _, _ = self.signal(now)
         self._enter(PAUSED if total < self.settings["sum_min"] else TRACKING, now)
-        self._timer = self.host.at(now + LOOP_S, self._tick)
+        self._timer = self.controller.at(now + LOOP_S, self._tick)
 
     def toggle(self, now: float) -> None:
         """Bare `LK`, the `@` short press: on from idle or error, off otherwise (MS-TRACK-1)."""
@@ -202,17 +202,17 @@ class Tracking(Module, ReportFields, PanelButtons, LcdSegment, ControlChannel):
         half = self.settings["cal_range"] / 2
         self.residue = {}
         self._move(x, half, now)
-        self._timer = self.host.at(now + CAL_LEG_S, lambda t: self._cal_back(x, half, t))
+        self._timer = self.controller.at(now + CAL_LEG_S, lambda t: self._cal_back(x, half, t))
 
     def _cal_back(self, x: Axis, half: float, now: float) -> None:
         plus = self.signal(now)[1]
         self._move(x, -2 * half, now)
-        self._timer = self.host.at(now + CAL_LEG_S, lambda t: self._cal_return(x, half, plus, t))
+        self._timer = self.controller.at(now + CAL_LEG_S, lambda t: self._cal_return(x, half, plus, t))
 
     def _cal_return(self, x: Axis, half: float, plus: float, now: float) -> None:
         minus = self.signal(now)[1]
         self._move(x, half, now)
-        self._timer = self.host.at(now + CAL_LEG_S, lambda t: self._cal_done(plus, minus, t))
+        self._timer = self.controller.at(now + CAL_LEG_S, lambda t: self._cal_done(plus, minus, t))
 
     def _cal_done(self, plus: float, minus: float, now: float) -> None:
         self._timer = None
@@ -235,7 +235,7 @@ class Tracking(Module, ReportFields, PanelButtons, LcdSegment, ControlChannel):
         items = [i for i in call.items if i.kind is not Kind.NUMBER]
         if not items:
             self.toggle(call.now)
-            return self.host.ack()
+            return self.controller.ack()
         codes: list[int] = []
         sets: list[Callable[[], None]] = []
         actions: list[Callable[[float], None]] = []
@@ -276,7 +276,7 @@ class Tracking(Module, ReportFields, PanelButtons, LcdSegment, ControlChannel):
         for action in actions:
             action(call.now)
         if not queries:
-            return self.host.ack()
+            return self.controller.ack()
         values = [query() for query in queries]
         # a number ends with a space (as `LK Z?` in §3); the state character does not (MS-38)
         trailing = " " if values[-1].isdigit() else ""
@@ -296,19 +296,19 @@ class Tracking(Module, ReportFields, PanelButtons, LcdSegment, ControlChannel):
             letter: Param(partial(self.settings.__getitem__, key), self._setter(key), check, Fmt.F6)
             for letter, (key, check) in LR_SETTINGS.items()
         }
-        return run_settings(call, params, "XYZF", self.host.render(call.key), self.host.ack())
+        return run_settings(call, params, "XYZF", self.controller.render(call.key), self.controller.ack())
 
     def ul(self, call: Call) -> Reply:
         """UL (MS-TRACK-2): focus-tracking parameters; bare `UL` stops tracking."""
         if not [i for i in call.items if i.kind is not Kind.NUMBER]:
             self.stop(call.now)
-            return self.host.ack()
-        checks = {**UL_SETTINGS, "F": ("focus_index", within(0, len(self.host.axes) - 1, integer=True))}
+            return self.controller.ack()
+        checks = {**UL_SETTINGS, "F": ("focus_index", within(0, len(self.controller.axes) - 1, integer=True))}
         params = {
             letter: Param(partial(self.settings.__getitem__, key), self._setter(key), check, Fmt.F6)
             for letter, (key, check) in checks.items()
         }
-        return run_settings(call, params, "XYZF", self.host.render(call.key), self.host.ack())
+        return run_settings(call, params, "XYZF", self.controller.render(call.key), self.controller.ack())
 
     def _integer(self, key: str) -> str:
         return str(int(self.settings[key]))

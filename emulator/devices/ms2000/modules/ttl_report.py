@@ -28,7 +28,7 @@ from protocols.rounding import round_half_away
 
 if TYPE_CHECKING:
     from emulator.devices.ms2000.axis import Axis
-    from emulator.devices.ms2000.modules.host import ModuleHost
+    from emulator.devices.ms2000.modules.owner import ModuleOwner
     from emulator.devices.ms2000.scheduler import Timer
 
 MODE = 6
@@ -67,8 +67,8 @@ class TtlReport(Module, TtlIn, ControlChannel):
         ),
     )
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.frames = 0
         self.overruns = 0
         #: the edge whose frame is being latched or sent: until `_busy_until` a new edge overruns
@@ -82,10 +82,10 @@ class TtlReport(Module, TtlIn, ControlChannel):
 
     @property
     def channel(self) -> str:
-        return str(self.host.knobs.ttl_report_port)
+        return str(self.controller.knobs.ttl_report_port)
 
     def observe(self, now: float) -> Any:
-        knobs = self.host.knobs
+        knobs = self.controller.knobs
         return {
             "port": knobs.ttl_report_port,
             "format": knobs.ttl_report_format,
@@ -105,24 +105,24 @@ class TtlReport(Module, TtlIn, ControlChannel):
     def in0_trigger(self, mode: int, now: float) -> None:
         if self._latch is not None or now < self._busy_until:
             self.overruns += 1
-            self.host.log_error(OVERRUN)
+            self.controller.log_error(OVERRUN)
             return
-        self._latch = self.host.at(now + LATCH_S, lambda t: self._latch_positions(now, t))
+        self._latch = self.controller.at(now + LATCH_S, lambda t: self._latch_positions(now, t))
 
     def _latch_positions(self, edge: float, now: float) -> None:
         self._latch = None
-        axes = self.host.axes
-        binary = self.host.knobs.ttl_report_format == "binary"
+        axes = self.controller.axes
+        binary = self.controller.knobs.ttl_report_format == "binary"
         data = self._binary(axes, now) if binary else self._ascii(axes, now)
-        self._busy_until = edge + len(data) * BITS_PER_CHAR / self.host.baud + FRAME_OVERHEAD_S
-        self._send = self.host.at(now + AXIS_READ_S * len(axes), lambda t: self._transmit(data, t))
+        self._busy_until = edge + len(data) * BITS_PER_CHAR / self.controller.baud + FRAME_OVERHEAD_S
+        self._send = self.controller.at(now + AXIS_READ_S * len(axes), lambda t: self._transmit(data, t))
 
     def _transmit(self, data: bytes, now: float) -> None:
         self._send = None
         self.frames += 1
-        self.host.send_raw(data, now, channel=self.channel)
+        self.controller.send_raw(data, now, channel=self.channel)
         if self.channel == AUX:
-            self.host.push_event({"ev": "aux_tx", "t": now, "data": data.hex()})
+            self.controller.push_event({"ev": "aux_tx", "t": now, "data": data.hex()})
 
     @staticmethod
     def _counts(axis: Axis, t: float) -> int:
@@ -135,5 +135,5 @@ class TtlReport(Module, TtlIn, ControlChannel):
     def _ascii(self, axes: Sequence[Axis], t: float) -> bytes:
         """The latched positions as `W` prints them, one line with the current terminator (MS-TTLREP-4)."""
         units = (axis.user_mm_of(axis.physical(t)) * axis.s.unit_multiplier for axis in axes)
-        text = " ".join(self.host.where(u) for u in units)
-        return text_frame([text.encode("ascii")], bool(self.host.card.vb_flags & 8))
+        text = " ".join(self.controller.where(u) for u in units)
+        return text_frame([text.encode("ascii")], bool(self.controller.card.vb_flags & 8))

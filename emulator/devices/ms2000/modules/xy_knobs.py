@@ -29,8 +29,8 @@ class XyKnobs(Module, ControlChannel):
 
     def speed(self) -> float:
         """The knob speed value: slow F, fast F × T³ (MS-KNOB-1)."""
-        card = self.host.card
-        return card.knob_slow * card.knob_mult**3 if self.host.joystick_fast else card.knob_slow
+        card = self.controller.card
+        return card.knob_slow * card.knob_mult**3 if self.controller.joystick_fast else card.knob_slow
 
     def control_input(self, name: str, params: dict[str, Any], now: float) -> Any:
         """`xy_knob {x_counts, y_counts}` (MS-KNOB-2)."""
@@ -46,7 +46,7 @@ class XyKnobs(Module, ControlChannel):
         return True
 
     def _turn(self, letter: str, counts: float, now: float) -> None:
-        axis = self.host.axis_named(letter)
+        axis = self.controller.axis_named(letter)
         if axis is None or not axis.s.manual_enabled:
             return
         mm = counts * self.speed() * MM_PER_COUNT_AT_SPEED_1

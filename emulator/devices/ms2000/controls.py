@@ -26,7 +26,7 @@ if TYPE_CHECKING:
 LCD_WIDTH = 20
 
 
-class Surfaced(Protocol):
+class ControlsOwner(Protocol):
     """All the control channel reads and drives of its controller."""
 
     @property
@@ -105,29 +105,29 @@ class Surfaced(Protocol):
     def declare_host(self, settings: dict[str, Any]) -> None: ...
 
 
-class ControlSurface:
+class Controls:
     """The `in`/`get` vocabulary of the controller's control channel."""
 
-    def __init__(self, ctl: Surfaced) -> None:
-        self.ctl = ctl
+    def __init__(self, controller: ControlsOwner) -> None:
+        self.controller = controller
 
     def lcd(self, t: float) -> list[str]:
         """Two 20-character lines [choice]: positions, then module status (DIP 2 UP) or text."""
-        ctl = self.ctl
-        scale = 25.4 if ctl.lcd_inches else 1.0
-        top = " ".join(f"{a.letter}{a.user_mm(t) / scale:.3f}" for a in ctl.axes)
-        if ctl.dip["sw2"] == "down":
-            bottom = ctl.lcd_text if ctl.lcd_text is not None else ctl.cfg.version
+        controller = self.controller
+        scale = 25.4 if controller.lcd_inches else 1.0
+        top = " ".join(f"{a.letter}{a.user_mm(t) / scale:.3f}" for a in controller.axes)
+        if controller.dip["sw2"] == "down":
+            bottom = controller.lcd_text if controller.lcd_text is not None else controller.cfg.version
         else:
-            up = int(t - ctl.booted_at)
+            up = int(t - controller.booted_at)
             clock = f"{up // 3600 % 100:02d}:{up // 60 % 60:02d}:{up % 60:02d}"
-            bottom = " ".join([*ctl.modules.lcd_segments(t), clock])
+            bottom = " ".join([*controller.modules.lcd_segments(t), clock])
         return [top[:LCD_WIDTH].rstrip(), bottom[:LCD_WIDTH].rstrip()]
 
     def _axes_state(self, t: float) -> dict[str, Any]:
-        ctl = self.ctl
+        controller = self.controller
         state = {}
-        for axis in ctl.axes:
+        for axis in controller.axes:
             axis.sample(t)
             state[axis.letter] = {
                 "machine_counts": round_half_away(axis.physical(t)),
@@ -136,36 +136,38 @@ class ControlSurface:
                 "target_user_mm": axis.user_mm_of(axis.target),
                 "min_user_mm": axis.ext_min,
                 "max_user_mm": axis.ext_max,
-                "status_byte": status_byte(axis, t, ctl.knobs.status_bit5_up_is_one),
-                "position": ctl.where(axis.units(t)),
+                "status_byte": status_byte(axis, t, controller.knobs.status_bit5_up_is_one),
+                "position": controller.where(axis.units(t)),
                 "activity": axis.activity.value,
                 "enabled": axis.enabled,
             }
         return state
 
     def observables(self) -> dict[str, Callable[[float], Any]]:
-        ctl = self.ctl
+        controller = self.controller
         table: dict[str, Callable[[float], Any]] = {
-            "baud": lambda t: ctl.baud,
+            "baud": lambda t: controller.baud,
             "axes": self._axes_state,
-            "busy": ctl.busy,
-            "ttl_out0": lambda t: ctl.ttl.level,
-            "ttl_out0_pwm": lambda t: ctl.ttl.pwm(),
-            "ttl_in0": lambda t: ctl.ttl.in0,
-            "ensync_out": lambda t: ctl.ensync_level,
+            "busy": controller.busy,
+            "ttl_out0": lambda t: controller.ttl.level,
+            "ttl_out0_pwm": lambda t: controller.ttl.pwm(),
+            "ttl_in0": lambda t: controller.ttl.in0,
+            "ensync_out": lambda t: controller.ensync_level,
             "lcd": self.lcd,
-            "error_log": lambda t: list(reversed(ctl.error_log)),
-            "dip": lambda t: dict(ctl.dip),
-            "mode": lambda t: ctl.interpreter.mode,
-            "host_line": lambda t: None if (h := ctl.host_line()) is None else h.describe(),
+            "error_log": lambda t: list(reversed(controller.error_log)),
+            "dip": lambda t: dict(controller.dip),
+            "mode": lambda t: controller.interpreter.mode,
+            "host_line": lambda t: None if (h := controller.host_line()) is None else h.describe(),
         }
-        table.update(ctl.modules.observables())
+        table.update(controller.modules.observables())
         return table
 
     def observe(self, name: str, t: float) -> Any:
         table = self.observables()
         if name not in table:
-            raise ControlError(f"{self.ctl.name}: no observable {name!r}; known: {', '.join(sorted(table))}")
+            raise ControlError(
+                f"{self.controller.name}: no observable {name!r}; known: {', '.join(sorted(table))}"
+            )
         return table[name](t)
 
     def snapshot(self, t: float) -> dict[str, Any]:
@@ -175,13 +177,13 @@ class ControlSurface:
         handler = self._inputs().get(name)
         if handler is not None:
             return handler(params, t)
-        if name not in self.ctl.modules.inputs():
+        if name not in self.controller.modules.inputs():
             known = self.names()["inputs"]
-            raise ControlError(f"{self.ctl.name}: no input {name!r}; known: {', '.join(known)}")
-        return self.ctl.modules.control_input(name, params, t)
+            raise ControlError(f"{self.controller.name}: no input {name!r}; known: {', '.join(known)}")
+        return self.controller.modules.control_input(name, params, t)
 
     def names(self) -> dict[str, list[str]]:
-        inputs = {*self._inputs(), *self.ctl.modules.inputs()}
+        inputs = {*self._inputs(), *self.controller.modules.inputs()}
         return {"inputs": sorted(inputs), "observables": sorted(self.observables())}
 
     def _inputs(self) -> dict[str, Callable[[dict[str, Any], float], Any]]:
@@ -202,14 +204,14 @@ class ControlSurface:
         }
 
     def _in_power_cycle(self, params: dict[str, Any], t: float) -> Any:
-        self.ctl.power.power_cycle(t)
+        self.controller.power.power_cycle(t)
         return True
 
     def _axis_param(self, params: dict[str, Any]) -> Axis:
         letter = params.get("axis")
-        axis = self.ctl.axis_named(letter.upper()) if isinstance(letter, str) else None
+        axis = self.controller.axis_named(letter.upper()) if isinstance(letter, str) else None
         if axis is None:
-            known = ", ".join(a.letter for a in self.ctl.axes)
+            known = ", ".join(a.letter for a in self.controller.axes)
             raise ControlError(f"axis must be one of {known}, got {letter!r}")
         return axis
 
@@ -225,25 +227,25 @@ class ControlSurface:
                 raise ControlError(f"host_line: unknown parameter {key!r}; use {', '.join(allowed)}")
             if not allowed[key](value):
                 raise ControlError(f"host_line: bad {key} {value!r}")
-        self.ctl.declare_host(params)
-        host = self.ctl.host_line()
-        return {"host": None if host is None else host.describe(), "garbled": self.ctl.garbles()}
+        self.controller.declare_host(params)
+        host = self.controller.host_line()
+        return {"host": None if host is None else host.describe(), "garbled": self.controller.garbles()}
 
     def _in_dip(self, params: dict[str, Any], t: float) -> Any:
         for key, value in params.items():
-            if key not in self.ctl.dip or value not in ("up", "down"):
+            if key not in self.controller.dip or value not in ("up", "down"):
                 raise ControlError(f"dip: expected sw1…sw8 set to 'up' or 'down', got {key}={value!r}")
-        self.ctl.dip.update(params)
-        return dict(self.ctl.dip)
+        self.controller.dip.update(params)
+        return dict(self.controller.dip)
 
     def _in_joystick(self, params: dict[str, Any], t: float) -> Any:
         x = _number(params, "x", 0.0, -1.0, 1.0, "joystick")
         y = _number(params, "y", 0.0, -1.0, 1.0, "joystick")
-        self.ctl.set_joystick(x, y, t)
+        self.controller.set_joystick(x, y, t)
         return True
 
     def _in_wheel(self, params: dict[str, Any], t: float) -> Any:
-        self.ctl.turn_wheel(_number(params, "counts", None, -1e6, 1e6, "wheel"), t)
+        self.controller.turn_wheel(_number(params, "counts", None, -1e6, 1e6, "wheel"), t)
         return True
 
     def _in_button(self, params: dict[str, Any], t: float) -> Any:
@@ -251,20 +253,20 @@ class ControlSurface:
         if name not in BUTTON_NAMES:
             raise ControlError(f"button: name must be one of {', '.join(BUTTON_NAMES)}, got {name!r}")
         ms = _number(params, "ms", 100.0, 0.0, 3_600_000.0, "button")
-        self.ctl.buttons.press(name, ms, t)
+        self.controller.buttons.press(name, ms, t)
         return True
 
     def _in_ttl_in0(self, params: dict[str, Any], t: float) -> Any:
         if "pulse_ms" in params:
-            self.ctl.ttl.pulse_in0(_number(params, "pulse_ms", None, 0.0, 3_600_000.0, "ttl_in0"), t)
+            self.controller.ttl.pulse_in0(_number(params, "pulse_ms", None, 0.0, 3_600_000.0, "ttl_in0"), t)
         elif "level" in params:
-            self.ctl.ttl.set_in0(int(_number(params, "level", None, 0, 1, "ttl_in0")), t)
+            self.controller.ttl.set_in0(int(_number(params, "level", None, 0, 1, "ttl_in0")), t)
         else:
             raise ControlError("ttl_in0 needs pulse_ms (a pulse) or level (0 or 1)")
         return True
 
     def _in_ttl_in1(self, params: dict[str, Any], t: float) -> Any:
-        self.ctl.ttl.set_in1(int(_number(params, "level", None, 0, 1, "ttl_in1")), t)
+        self.controller.ttl.set_in1(int(_number(params, "level", None, 0, 1, "ttl_in1")), t)
         return True
 
     def _in_limit(self, params: dict[str, Any], t: float) -> Any:
@@ -280,8 +282,8 @@ class ControlSurface:
             moving = axis.activity in (Activity.MOVE, Activity.HOME, Activity.SPIN, Activity.VELOCITY)
             axis.stop(t)
             if moving:
-                self.ctl.log_error(34 if end == UPPER else 35)
-                self.ctl.axis_finished(axis, t)
+                self.controller.log_error(34 if end == UPPER else 35)
+                self.controller.axis_finished(axis, t)
         return True
 
     def _in_disturb(self, params: dict[str, Any], t: float) -> Any:
@@ -298,15 +300,15 @@ class ControlSurface:
         group = axis.group
         stalled = axis.stall(t)
         if stalled and group is not None:
-            self.ctl.axis_finished(axis, t)
+            self.controller.axis_finished(axis, t)
         return stalled
 
     def _in_log_error(self, params: dict[str, Any], t: float) -> Any:
-        self.ctl.log_error(int(_number(params, "code", None, 0, 65535, "log_error")))
-        return list(reversed(self.ctl.error_log))
+        self.controller.log_error(int(_number(params, "code", None, 0, 65535, "log_error")))
+        return list(reversed(self.controller.error_log))
 
     def _in_az_fail(self, params: dict[str, Any], t: float) -> Any:
-        self.ctl.az_fail.add(self._axis_param(params).hw_letter)
+        self.controller.az_fail.add(self._axis_param(params).hw_letter)
         return True
 
 

@@ -1,5 +1,5 @@
-"""The module host (rule 6 of the design): a firmware module is one file that registers everything it
-adds, sees the controller only as a `ModuleHost`, and is enabled by a profile. Proved with
+"""Modules (rule 6 of the design): a firmware module is one file that registers everything it
+adds, sees the controller only as a `ModuleOwner`, and is enabled by a profile. Proved with
 test-only modules defined in this file: no other file of the controller or its modules changes,
 not even to let one of them talk to an existing module (ARRAY) through events."""
 
@@ -15,7 +15,7 @@ from emulator.devices.ms2000.calls import Call, Param, Reply, run_settings, with
 from emulator.devices.ms2000.modules import MODULES, Handler, Module
 from emulator.devices.ms2000.modules.capabilities import ControlChannel, LcdSegment, Playback
 from emulator.devices.ms2000.modules.events import ArrayArrival, Reset, RmX, on
-from emulator.devices.ms2000.modules.host import ModuleHost
+from emulator.devices.ms2000.modules.owner import ModuleOwner
 from emulator.devices.ms2000.schema import DEFAULT_MODULES, build_schema
 from emulator.profiles import registry
 from emulator.profiles.profile import ProfileError, load_profile
@@ -40,8 +40,8 @@ class ProbeModule(Module, ControlChannel, LcdSegment):
     observable = "probe"
     inputs = frozenset({"probe_kick"})
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.volts = 0.0
         self.kicks = 0
 
@@ -50,7 +50,7 @@ class ProbeModule(Module, ControlChannel, LcdSegment):
 
     def wrdac(self, call: Call) -> Reply:
         params = {"X": Param(lambda: self.volts, self._set, within(0, 10), Fmt.F6)}
-        return run_settings(call, params, "X", self.host.render(call.key), self.host.ack())
+        return run_settings(call, params, "X", self.controller.render(call.key), self.controller.ack())
 
     def _set(self, volts: float) -> None:
         self.volts = volts
@@ -65,8 +65,8 @@ class ProbeModule(Module, ControlChannel, LcdSegment):
         return {"volts": self.volts, "kicks": self.kicks}
 
     def control_input(self, name: str, params: dict[str, Any], now: float) -> Any:
-        self.kicks += int(params.get("times", 1)) * self.host.knobs.probe_gain
-        self.host.push_event({"ev": "probe_kicked", "t": now, "kicks": self.kicks})
+        self.kicks += int(params.get("times", 1)) * self.controller.knobs.probe_gain
+        self.controller.push_event({"ev": "probe_kicked", "t": now, "kicks": self.kicks})
         return self.kicks
 
     def save(self) -> dict[str, Any]:
@@ -91,19 +91,19 @@ class ArrayWatcher(Module, ControlChannel):
     observable = "watcher"
     inputs = frozenset({"watch_start"})
 
-    def __init__(self, host: ModuleHost) -> None:
-        super().__init__(host)
+    def __init__(self, controller: ModuleOwner) -> None:
+        super().__init__(controller)
         self.arrivals: list[float] = []
 
     def control_input(self, name: str, params: dict[str, Any], now: float) -> Any:
-        self.host.emit(RmX(now, 1))
+        self.controller.emit(RmX(now, 1))
 
     @on(ArrayArrival)
     def arrived(self, event: ArrayArrival) -> None:
         self.arrivals.append(event.t)
 
     def observe(self, now: float) -> Any:
-        ring = self.host.module(Playback)
+        ring = self.controller.module(Playback)
         return {"arrivals": list(self.arrivals), "playback": ring.playback_mode() if ring else None}
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from emulator.device import LineSettings
-from emulator.line import Pacer, bits_per_char, char_time, mismatches, settings_char_time
+from emulator.wire_time import Pacer, bits_per_char, char_time, mismatches, settings_char_time
 
 
 def test_character_times() -> None:

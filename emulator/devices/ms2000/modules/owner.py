@@ -1,7 +1,7 @@
-"""The module host: all a firmware module may use of the controller (rule 6 of the design).
+"""A module's owner: all a firmware module may use of its controller (rule 6 of the design).
 
-A module is constructed with an object satisfying `ModuleHost` and nothing else; mypy holds it to
-these members. `model.Ms2000Device` implements it (as it implements `axis_host.AxisHost` for the
+A module is constructed with an object satisfying `ModuleOwner` and nothing else; mypy holds it to
+these members. `model.Ms2000Device` implements it (as it implements `axis_owner.AxisOwner` for the
 axes). A module that needs more adds it here and to the controller, on purpose and in review,
 rather than reaching into controller state; what one module offers another travels as an event
 (events.py) or a capability (capabilities.py), not as a member here.
@@ -24,7 +24,7 @@ if TYPE_CHECKING:
 T = TypeVar("T")
 
 
-class ModuleHost(Protocol):
+class ModuleOwner(Protocol):
     # ---- configuration and settings (read; a module keeps its own state itself) ---------------
 
     @property

@@ -33,8 +33,8 @@ from emulator.device import (
     Notes,
 )
 from emulator.devices.mp285.schema import BAUDS, Mp285Controller, Mp285Knobs
-from emulator.line import char_time, mismatches
 from emulator.uart import HALF, Char, Framing, Wire
+from emulator.wire_time import char_time, mismatches
 
 #: `on_char(byte, framing_error, t)`: one character received at `t` (framing_error: not a data byte)
 OnChar = Callable[[int, bool, float], None]
@@ -103,7 +103,7 @@ class Sources:
         self._sent.clear()
 
 
-class Line:
+class SerialLine:
     """One controller's port: its settings, the host's, the wires of a mismatched line, the
     transmitter and the MP-7 receive register."""
 

@@ -1,4 +1,4 @@
-"""The serial line between host and device: character timing and pacing.
+"""Wire time: how long characters take on the serial line, and pacing by it.
 
 A pseudo-terminal moves bytes at memory speed. With `timing: realistic` the device's output is
 released one character at a time, each character arriving when its stop bit ends on a real wire

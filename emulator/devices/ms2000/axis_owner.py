@@ -1,6 +1,6 @@
 """All an axis may use of its controller (`model.Ms2000Device` implements it).
 
-Generic in the axis type, so that this file needs no axis: `axis.Axis` holds an `AxisHost[Axis]`.
+Generic in the axis type, so that this file needs no axis: `axis.Axis` holds an `AxisOwner[Axis]`.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ if TYPE_CHECKING:
 A = TypeVar("A", contravariant=True)
 
 
-class AxisHost(Protocol[A]):
+class AxisOwner(Protocol[A]):
     """All an axis may use of its controller (`model.Ms2000Device` implements it)."""
 
     @property
