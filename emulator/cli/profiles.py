@@ -11,6 +11,7 @@ import click
 
 from emulator.cli.common import fail
 from emulator.hosting.rig import load_rig
+from emulator.profiles.describe import DerivedDefault, plain
 from emulator.profiles.profile import (
     ProfileError,
     bundled_names,
@@ -19,7 +20,6 @@ from emulator.profiles.profile import (
     load_profile,
     resolve_reference,
 )
-from emulator.profiles.schema import DerivedDefault, plain
 from emulator.profiles.yamlsource import SourceError, read_source
 
 #: `describe`'s allowed-values column is cut here (`--json` has every type in full)

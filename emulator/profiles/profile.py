@@ -32,15 +32,14 @@ from pathlib import Path as FsPath
 from typing import Any, Generic, TypeVar
 
 from emulator.profiles import registry
+from emulator.profiles.describe import KnobRow, describe_rows
 from emulator.profiles.schema import (
     Choice,
     Int,
-    KnobRow,
     Schema,
     SchemaError,
     Section,
     Text,
-    describe_rows,
     every_error,
     setting,
 )

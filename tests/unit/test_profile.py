@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 
 import tests.support.probe_device  # noqa: F401  (registers the `probe` family)
+from emulator.profiles.describe import describe_rows
 from emulator.profiles.profile import ProfileError, load_profile
 from emulator.profiles.schema import (
     Choice,
@@ -22,7 +23,6 @@ from emulator.profiles.schema import (
     SchemaError,
     Section,
     Str,
-    describe_rows,
     every_error,
     extend,
     required,

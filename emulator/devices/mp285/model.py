@@ -37,7 +37,7 @@ from emulator.device import (
 )
 from emulator.devices.mp285.commands import run_item
 from emulator.devices.mp285.faults import Crash, Roe, crash_signature, roe_turn
-from emulator.devices.mp285.motion import Halt, Program, Run, Stage, Xyz
+from emulator.devices.mp285.motion import INTERRUPTED_REPLIES, Halt, Program, Run, Stage, Xyz
 from emulator.devices.mp285.movelog import rest_record, run_record
 from emulator.devices.mp285.receiver import Receiver
 from emulator.devices.mp285.schema import Mp285Config, speed_limits
@@ -48,12 +48,6 @@ from emulator.profiles.profile import Profile
 from protocols import mp285 as proto
 from protocols.mp285 import ErrorCode, Item, StatusBlock, Vector, Velocity
 
-#: final reply of a move halted by a byte other than ^C, by `move_interrupt_reply` (MP-53)
-INTERRUPTED_REPLIES = {
-    "cr": b"\r",
-    "error8": proto.error_reply(ErrorCode.MOVE_INTERRUPTED),
-    "error8_4": proto.error_reply(proto.combine_errors(ErrorCode.MOVE_INTERRUPTED, ErrorCode.BAD_COMMAND)),
-}
 #: control-channel inputs (`ctl input`), see docs/mp285.md
 INPUTS = ("crash", "power_cycle", "roe", "set_line")
 

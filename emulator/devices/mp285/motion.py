@@ -99,6 +99,16 @@ class Program:
     next: int = 0
 
 
+#: final reply of a move halted by a byte other than ^C, by `move_interrupt_reply` (MP-53)
+INTERRUPTED_REPLIES = {
+    "cr": b"\r",
+    "error8": proto.error_reply(proto.ErrorCode.MOVE_INTERRUPTED),
+    "error8_4": proto.error_reply(
+        proto.combine_errors(proto.ErrorCode.MOVE_INTERRUPTED, proto.ErrorCode.BAD_COMMAND)
+    ),
+}
+
+
 class Halt(enum.Enum):
     """Why a run was halted before its end (the `halted` field of the `move_ended` event)."""
 

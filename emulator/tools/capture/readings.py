@@ -9,8 +9,8 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
+from emulator.profiles.describe import plain
 from emulator.profiles.profile import Profile
-from emulator.profiles.schema import plain
 
 #: a profile field's place: ("axes", "X", "speed_mm_s"), ("knobs", "reply_shape_overrides", "OS")
 FieldPath = tuple[str, ...]
