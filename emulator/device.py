@@ -1,7 +1,7 @@
-"""The contract between a device model and the host that runs it.
+"""The contract between a device model and the runner that hosts it (emulator/hosting/runner.py).
 
 A device model is a sans-I/O state machine (the h11/wsproto idea). It never touches a file
-descriptor, a socket, a thread or the wall clock: the host feeds it bytes stamped with device time,
+descriptor, a socket, a thread or the wall clock: the runner feeds it bytes stamped with device time,
 asks it when it next needs to act, lets it act, and drains an outbox of timed bytes. The same model
 then runs under a PTY, over TCP, in-process and in a unit test on a manual clock, deterministically.
 
@@ -10,20 +10,20 @@ model's part in the protected hook): `advance(now)` keeps `self.now`, the latest
 model has been brought to, then calls `_advance(now)`; `receive(data, now)` advances to `now` first,
 then calls `_receive(data, now)`, so a model only ever receives with every earlier event processed.
 
-Host obligations (see emulator/hosting/runner.py):
+Runner obligations (see emulator/hosting/runner.py):
 - Times passed in are non-decreasing across all calls.
 - Before a call stamped `now` other than `receive` (`line_changed`, `control_input`, `observe`,
-  `snapshot`) the host has called `advance(now)`.
-- Whenever `next_deadline()` returns a time, the host calls `advance()` no later than that time
+  `snapshot`) the runner has called `advance(now)`.
+- Whenever `next_deadline()` returns a time, the runner calls `advance()` no later than that time
   (with a real clock, possibly a little later: the model must stamp its outputs with the exact
   instant the event was due, never with the `now` it was called at).
-- After every call the host drains `take_output()`, `take_events()` and `take_rx_notes()`.
+- After every call the runner drains `take_output()`, `take_events()` and `take_rx_notes()`.
 
 Model obligations:
 - `Emission.due` is the device instant at which the bytes are handed to the device's transmitter;
   a `Pacer` (emulator/wire_time.py) then paces them at the character rate.
 - Bad input never raises: it produces whatever the real device does with it.
-- While `explain` is set (the host keeps a traffic log, or someone watches the traffic) it says what
+- While `explain` is set (the runner keeps a traffic log, or someone watches the traffic) it says what
   it did with the bytes: an `RxNote` per unit of input (a command, a garbled character, bytes lost or
   stray) and a summary on each `Emission`. While it is clear nothing is formatted: the hot path
   pays one attribute test.
@@ -158,8 +158,8 @@ class Notes:
 
     def rx(self, t: float, kind: str, data: bytes, summary: str, channel: str = MAIN) -> None:
         """Note a unit of input. Lost bytes right after lost bytes for the same reason extend that
-        note until the host takes it, so a chunk dropped while deaf is one record, not one per
-        byte (bytes paced in one by one across host steps stay one record each)."""
+        note until the runner takes it, so a chunk dropped while deaf is one record, not one per
+        byte (bytes paced in one by one across runner steps stay one record each)."""
         last = self._rx[-1] if self._rx else None
         if kind == LOST and last and (last.kind, last.summary, last.channel) == (kind, summary, channel):
             self._rx[-1] = RxNote(t, kind, last.data + data, summary, channel)
@@ -203,7 +203,7 @@ class DeviceServices:
     #: directory for non-volatile device memory, written synchronously by `open_store`'s default
     #: stores; None = nothing persists beyond the model (its store is in memory)
     state_dir: Path | None = None
-    #: how the host opens stores instead (the daemon's write on a worker thread, emulator/hosting/daemon.py)
+    #: how the runner opens stores instead (the daemon's write on a worker thread, emulator/hosting/daemon.py)
     stores: StoreOpener | None = None
 
     def open_store(self, device_id: str, report: StoreReport) -> Store:
@@ -222,7 +222,7 @@ class Device(ABC):
 
     #: channels (ports) the model talks on; most devices have just `main`
     channels: tuple[str, ...] = (MAIN,)
-    #: False when the profile asks for unpaced output (MP-285 `pace_line: false`); the host then
+    #: False when the profile asks for unpaced output (MP-285 `pace_line: false`); the runner then
     #: delivers at once even on a `timing: realistic` port. Re-read on every pump, so a model may
     #: change it at runtime (the MP-285 clears it while its UART model times a mismatched line).
     pace_line: bool = True
@@ -236,12 +236,12 @@ class Device(ABC):
         self.profile = profile
         self.services = services
         self.log = logging.getLogger(f"stage_emu.device.{name}")
-        #: the latest device time the model has been advanced to (for work the host triggers
+        #: the latest device time the model has been advanced to (for work the runner triggers
         #: between calls, such as a store's report); kept by `advance`
         self.now = now
         #: notes on received bytes, collected while `explain` is set
         self.notes = Notes()
-        #: timed bytes for the host and pushed control-channel events, drained by the take_* methods
+        #: timed bytes for the runner and pushed control-channel events, drained by the take_* methods
         self._outbox: list[Emission] = []
         self._events: list[dict[str, Any]] = []
 
@@ -283,7 +283,7 @@ class Device(ABC):
     def next_deadline(self) -> float | None:
         """Device time of the next internal event, or None when nothing is scheduled."""
 
-    # ---- what the host drains ----------------------------------------------------------------
+    # ---- what the runner drains --------------------------------------------------------------
 
     def take_output(self) -> list[Emission]:
         """Drain the outbox."""
@@ -352,12 +352,12 @@ class Device(ABC):
         return {"inputs": [], "observables": sorted(self.snapshot(self.now))}
 
     def shut_down(self, now: float) -> None:
-        """The host is stopping (the daemon exits): save now what the model would save a little
+        """The runner is stopping (the daemon exits): save now what the model would save a little
         later (positions it saves once at rest). Nothing by default."""
         return None
 
     def forget_nonvolatile(self) -> None:
         """Erase whatever the model keeps across power cycles (saved settings), before a factory
         reset from the control channel. Nothing by default. Raises ControlError when it cannot, and
-        then leaves the model as it was (the host keeps it)."""
+        then leaves the model as it was (the runner keeps it)."""
         return None

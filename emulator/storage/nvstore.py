@@ -18,7 +18,7 @@ refused with `StateInUse`, so two daemons (or a daemon and a `stageemu://...?sta
 overwrite each other's saves unseen. Stores of one process share the claim (a model and the one a
 reset replaces it with); the kernel drops it with the process, so a killed owner blocks nobody.
 
-A device model gets its store from the host (`DeviceServices.open_store`, emulator/device.py) and
+A device model gets its store from the runner (`DeviceServices.open_store`, emulator/device.py) and
 never sees a file. Two kinds hand the outcome of each save to a `report` callback instead of raising:
 `ReportingStore` writes at once, on the caller's thread (unit tests, in-process hosting);
 `DeferredStore`, opened from the daemon's `FlashWriter`, queues the image for a worker thread, so the

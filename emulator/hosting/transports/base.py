@@ -1,4 +1,4 @@
-"""What every transport offers the device host. Transports move bytes and report line settings;
+"""What every transport offers the device runner. Transports move bytes and report line settings;
 they never parse the protocol.
 
 Flow control (both directions are bounded, like a real serial line):
