@@ -8,7 +8,6 @@ import importlib
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import pytest
@@ -16,26 +15,10 @@ import serial
 
 import emulator.urlhandler
 from emulator.urlhandler.protocol_stageemu import Serial as StageEmuSerial
+from tests.unit.conftest import OpenUrl
 
 VERSION = b":A Version: USB-9.2k \r\n"
 CHAR_9600 = 10 / 9600  # one 8N1 character on the wire
-OpenUrl = Callable[..., serial.SerialBase]
-
-
-@pytest.fixture
-def open_url() -> Iterator[OpenUrl]:
-    """`open_url(url, **settings)`: a port through `serial.serial_for_url`, closed after the test."""
-    ports: list[serial.SerialBase] = []
-
-    def factory(url: str, **settings: object) -> serial.SerialBase:
-        settings.setdefault("timeout", 1.0)
-        port = serial.serial_for_url(url, **settings)
-        ports.append(port)
-        return port
-
-    yield factory
-    for port in ports:
-        port.close()
 
 
 def ask(port: serial.SerialBase, command: bytes, count: int) -> bytes:

@@ -6,7 +6,6 @@ every wait is exact and costs no wall time."""
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Iterator
 
 import pytest
 import serial
@@ -15,25 +14,9 @@ import emulator.urlhandler  # noqa: F401  (registers stageemu://)
 from emulator.hosting.port import INPUT_BACKLOG
 from emulator.hosting.transports.inprocess import RECEIVE_BUFFER
 from tests.conformance.mp285.wire import DUMP_B
+from tests.unit.conftest import OpenUrl
 
 VERSION = b":A Version: USB-9.2k \r\n"
-OpenUrl = Callable[..., serial.SerialBase]
-
-
-@pytest.fixture
-def open_url() -> Iterator[OpenUrl]:
-    """`open_url(url, **settings)`: a port through `serial.serial_for_url`, closed after the test."""
-    ports: list[serial.SerialBase] = []
-
-    def factory(url: str, **settings: object) -> serial.SerialBase:
-        settings.setdefault("timeout", 1.0)
-        port = serial.serial_for_url(url, **settings)
-        ports.append(port)
-        return port
-
-    yield factory
-    for port in ports:
-        port.close()
 
 
 def lines(port: serial.SerialBase) -> tuple[bool, bool, bool, bool]:
