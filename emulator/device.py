@@ -95,7 +95,7 @@ class LineSettings(HostLine):
 class ModemLines:
     """The modem-status lines a device drives, named as the host reads them at its end of a direct
     cable (a null-modem cable to a PC's serial port): CTS, DSR, CD, RI. Only transports that carry
-    modem lines show them (a serial port, RFC 2217); a pseudo-terminal and raw TCP carry none. With
+    modem lines show them (a serial port, RFC 2217, the stageemu:// URL); a PTY and raw TCP carry none. With
     RTS/CTS flow control (`LineSettings.rtscts`) the transport drives CTS from the device's room for
     input instead of `cts`, and sends only while the host's RTS is on."""
 
@@ -175,7 +175,7 @@ class Store(Protocol):
     """A device's non-volatile memory as the model sees it (emulator/storage/nvstore.py has the kinds).
 
     `load()` and `erase()` raise StorageError. `save()` never raises: the outcome goes to the report
-    callback the store was opened with, either before `save` returns or later, on the host's thread
+    callback the store was opened with, either before `save` returns or later, on the runner's thread
     between two model calls, once the store has settled (its latest image is on disk, or failed)."""
 
     @property
