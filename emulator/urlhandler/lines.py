@@ -84,13 +84,7 @@ class ModemTransport(InProcessTransport):
 
     def pass_held(self) -> None:
         """Bytes held for CTS cross once the host's UART may send, as far as the wire has room."""
-        link = self._link()
-        if not self.held_in or link.input_held():
-            return
-        link.released(len(self.held_in))
-        room = super().room()
-        chunk = bytes(self.held_in[:room])
-        del self.held_in[:room]
+        chunk = self._link().passable_input(self.held_in, super().room())
         if chunk:
             super().send(chunk)
 
@@ -110,11 +104,7 @@ class ModemTransport(InProcessTransport):
         link = self._modem
         if link is None or not link.output_held():
             return super().write(data)
-        room = max(self._limit - len(self.received) - len(self.held_out), 0)
-        self.held_out += data[:room]
-        if room < len(data):
-            link.overflowed()
-        return max(len(data) - room, 0)
+        return link.hold_output(self.held_out, data, self._limit - len(self.received))
 
     def close(self) -> None:
         self._drop_held()

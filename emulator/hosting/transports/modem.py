@@ -105,6 +105,25 @@ class ModemLink:
                 "%s: host set DTR %s (ignored: the device has no DTR input)", self.where, on_off(on)
             )
 
+    def hold_output(self, held: bytearray, data: bytes, limit: int) -> int:
+        """Keep `data` in `held` (output held for the host's RTS) up to `limit` bytes in all; returns
+        how many of the newest were dropped, said once per episode."""
+        kept = max(min(len(data), limit - len(held)), 0)
+        held += data[:kept]
+        if kept < len(data):
+            self.overflowed()
+        return len(data) - kept
+
+    def passable_input(self, held: bytearray, room: int) -> bytes:
+        """Take from `held` (the host's bytes waiting for CTS) what may go to the device now, at most
+        `room` bytes: nothing while the host's UART may not send."""
+        if not held or self.input_held():
+            return b""
+        self.released(len(held))
+        chunk = bytes(held[:room])
+        del held[:room]
+        return chunk
+
     def overflowed(self) -> None:
         """Output held for the host's RTS did not fit the port's buffer (the runner counts what is
         dropped; this says why, once per episode)."""

@@ -334,10 +334,7 @@ class Rfc2217Transport(NetworkTransport):
             if len(self._held_in) >= HELD_INPUT_LIMIT:
                 self._set_mask(self._mask & ~select.EPOLLIN)
             return
-        self._modem.released(len(self._held_in))
-        room = max(self._sink.room(), 0)
-        chunk = bytes(self._held_in[:room])
-        del self._held_in[:room]
+        chunk = self._modem.passable_input(self._held_in, max(self._sink.room(), 0))
         if chunk:
             self._sink.host_data(chunk)
         if len(self._held_in) < HELD_INPUT_LIMIT:
@@ -386,11 +383,7 @@ class Rfc2217Transport(NetworkTransport):
         modem = self._modem
         if modem is None or not modem.output_held():
             return super().write(data)
-        kept = max(min(len(data), OUTPUT_LIMIT - len(self._held_out)), 0)
-        self._held_out += data[:kept]
-        if kept < len(data):
-            modem.overflowed()
-        return len(data) - kept
+        return modem.hold_output(self._held_out, data, OUTPUT_LIMIT)
 
     def _apply_settings(self) -> None:
         if self._settle is not None:
