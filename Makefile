@@ -40,14 +40,14 @@ compile: $(STAMP)
 run: compile
 	@$(BIN)/stage-emu serve $(ARGS)
 
-# pytest rewrites each test module's asserts and keeps the result in a .pyc of its own, but never
-# writes one under PYTHONDONTWRITEBYTECODE: every pytest process of `make test` (the xdist workers,
-# the smoke runs, the client suites) would rewrite every test module it imports again (3.6 s of CPU
-# each on this 2-core machine). Collecting once with writing allowed leaves them; pytest checks each
-# against its source as it always does. Redone when a test file changes; a collection error is
-# reported by the run that follows.
+# pytest rewrites the asserts of each test module (and of the packages whose plugin it loads:
+# emulator, protocols, configs) and keeps the result in a .pyc of its own, but never writes one under
+# PYTHONDONTWRITEBYTECODE: every pytest process of `make test` (the xdist workers, the smoke runs, the
+# client suites) would rewrite every module it imports again (3.6 s of CPU each on this 2-core
+# machine). Collecting once with writing allowed leaves them; pytest checks each against its source
+# as it always does. Redone when a source changes; a collection error is the next run's to report.
 REWRITTEN := $(VENV)/.tests-rewritten
-$(REWRITTEN): $(STAMP) $(shell find tests -name "*.py") $(wildcard emulator/pytest_*.py)
+$(REWRITTEN): $(STAMP) $(shell find tests emulator protocols configs -name "*.py")
 	@env -u PYTHONDONTWRITEBYTECODE $(BIN)/python -m pytest -q --collect-only -p no:cacheprovider >/dev/null 2>&1 || true
 	@touch $@
 
