@@ -155,6 +155,9 @@ def _under_xdist(config: pytest.Config) -> bool:
     return hasattr(config, "workerinput")
 
 
+# first: pytest-xdist's worker reads the group marks in its own hook, which otherwise runs before
+# this one and left the smoke tests ungrouped (every worker that drew one started all six runs)
+@pytest.hookimpl(tryfirst=True)
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
     # In one process the runs start when collection ends and their tests go last, so the session's
     # own tests overlap them. Under xdist every worker collects everything and none can tell which
@@ -192,6 +195,12 @@ def pytest_sessionfinish() -> None:
 def smoke_runs(request: pytest.FixtureRequest) -> SmokeRuns:
     """The smoke runs, started when collection ended (or, under xdist, by their first test)."""
     if _runs is None and _under_xdist(request.config):
+        grouped = [item.nodeid.endswith(f"@{FIXTURE}") for item in request.session.items if _run_of(item)]
+        if request.config.getvalue("loadgroup") and not all(grouped):
+            pytest.fail(
+                "pytest-xdist did not keep the smoke tests on one worker (with pytest 9.2, pytest-xdist "
+                "issue 1386): each worker that drew one would start every run; use pytest < 9.2"
+            )
         _start_wanted(request.session)
     assert _runs is not None, "no smoke run was started: are the tests parametrized by `family`?"
     return _runs
