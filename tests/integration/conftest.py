@@ -30,6 +30,7 @@ import pytest
 
 from tests.conformance.test_sessions import session_id
 from tests.support.daemon import ROOT, RunningDaemon, start_daemon
+from tests.support.process_group import end_group, start_group
 
 FIXTURE = "smoke_runs"
 #: the transports a smoke sample runs over: a daemon's RFC 2217 port, a daemon pool's PTYs, a
@@ -37,6 +38,8 @@ FIXTURE = "smoke_runs"
 RFC2217, PTY, SERIAL = "rfc2217", "pty", "serial"
 #: a run that has not finished this long after it started has hung
 RUN_TIMEOUT_S = 300.0
+#: how long an interrupted run may take to stop its daemons before all of it is killed
+END_GRACE_S = 10.0
 
 
 @dataclass
@@ -61,8 +64,7 @@ class SmokeRun:
             try:
                 self.proc.wait(max(left, 0.0))
             except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
+                end_group(self.proc, END_GRACE_S)
             self.seconds = time.monotonic() - self.started
             if self.daemon is not None:
                 self.daemon.stop()
@@ -74,8 +76,7 @@ class SmokeRun:
         return f"{self.output.read_text()[-6000:]}{log}"
 
     def stop(self) -> None:
-        if self.proc.poll() is None:
-            self.proc.kill()
+        end_group(self.proc, END_GRACE_S)
         self.proc.wait()
         if self.daemon is not None:
             self.daemon.stop()
@@ -117,7 +118,7 @@ class SmokeRuns:
             *("-W", "ignore::DeprecationWarning"),  # pyserial's RFC 2217 client calls Thread.setDaemon
         ]
         with open(output, "wb") as sink:
-            proc = subprocess.Popen(
+            proc = start_group(
                 command,
                 cwd=ROOT,
                 env={**os.environ, "PYTHONPATH": str(ROOT)},

@@ -1,0 +1,71 @@
+"""Ending a smoke run ends what it started (tests/support/process_group.py): its daemons used to
+outlive a smoke run that was killed."""
+
+from __future__ import annotations
+
+import os
+import select
+import signal
+import subprocess
+import sys
+
+import pytest
+
+from tests.support.process_group import end_group, start_group
+
+#: only a hang takes this long
+TIMEOUT_S = 10.0
+
+#: a leader that starts a child, prints the child's pid and waits; IGNORE makes both ignore SIGINT
+LEADER = """
+import signal, subprocess, sys, time
+if sys.argv[1] == "ignore":
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+child = subprocess.Popen([sys.executable, "-c", sys.argv[2], sys.argv[1]])
+print(child.pid, flush=True)
+time.sleep(60)
+"""
+CHILD = """
+import signal, sys, time
+if sys.argv[1] == "ignore":
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+time.sleep(60)
+"""
+
+pytestmark = pytest.mark.skipif(not hasattr(os, "pidfd_open"), reason="needs pidfd_open (Linux)")
+
+
+def leader_and_child(mode: str) -> tuple[subprocess.Popen[bytes], int]:
+    """The leader, and a pidfd of its child (readable once the child has exited)."""
+    proc = start_group([sys.executable, "-c", LEADER, mode, CHILD], stdout=subprocess.PIPE)
+    assert proc.stdout is not None
+    child = int(proc.stdout.readline())
+    return proc, os.pidfd_open(child)
+
+
+def exits(pidfd: int) -> bool:
+    try:
+        return bool(select.select([pidfd], [], [], TIMEOUT_S)[0])
+    finally:
+        os.close(pidfd)
+
+
+def test_an_interrupted_group_ends_whole() -> None:
+    proc, child = leader_and_child("default")
+    end_group(proc, TIMEOUT_S)
+    assert proc.returncode is not None
+    assert exits(child)
+
+
+def test_a_group_that_ignores_the_interrupt_is_killed_after_the_grace() -> None:
+    proc, child = leader_and_child("ignore")
+    end_group(proc, 0.3)
+    assert proc.returncode == -signal.SIGKILL
+    assert exits(child)
+
+
+def test_a_reaped_leader_is_left_alone() -> None:
+    proc = start_group([sys.executable, "-c", "pass"])
+    proc.wait()
+    end_group(proc, TIMEOUT_S)  # its group number may be someone else's: nothing is signalled
+    assert proc.returncode == 0
