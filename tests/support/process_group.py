@@ -4,6 +4,7 @@ daemons of their own: killing the pytest process alone left those daemons runnin
 from __future__ import annotations
 
 import os
+import select
 import signal
 import subprocess
 from typing import Any
@@ -15,15 +16,25 @@ def start_group(command: list[str], **popen: Any) -> subprocess.Popen[bytes]:
 
 
 def end_group(proc: subprocess.Popen[bytes], grace_s: float) -> None:
-    """Interrupt the whole group (pytest tears its fixtures down, a daemon stops cleanly), then kill
-    what is left of it if the leader has not exited within `grace_s`. A leader that has exited and
-    been reaped is left alone: its process group number may belong to someone else by now."""
+    """Interrupt the whole group (pytest tears its fixtures down, a daemon stops cleanly), then,
+    once the leader has exited or `grace_s` has passed, kill what is left of the group: a child
+    still starting up may lose the interrupt, one may hang. A leader that has exited and been
+    reaped is left alone: its group number may belong to someone else by now."""
     if proc.poll() is not None:
         return
-    # the leader is alive or an unreaped zombie, so the group number is still its own
+    # from here on the leader is alive or an unreaped zombie, so the group number is still its own
     os.killpg(proc.pid, signal.SIGINT)
-    try:
-        proc.wait(grace_s)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.wait()
+    if hasattr(os, "pidfd_open"):
+        leader = os.pidfd_open(proc.pid)
+        try:
+            select.select([leader], [], [], grace_s)  # readable once it has exited; still unreaped
+        finally:
+            os.close(leader)
+    else:  # no way to wait without reaping: only a leader that outlives the grace takes the rest
+        try:
+            proc.wait(grace_s)
+            return
+        except subprocess.TimeoutExpired:
+            pass
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()

@@ -16,12 +16,13 @@ from tests.support.process_group import end_group, start_group
 #: only a hang takes this long
 TIMEOUT_S = 10.0
 
-#: a leader that starts a child, prints the child's pid and waits; IGNORE makes both ignore SIGINT
+#: a leader that starts a child, prints the child's pid and waits; "ignore" in its first argument
+#: makes it ignore SIGINT, in its second the child
 LEADER = """
 import signal, subprocess, sys, time
 if sys.argv[1] == "ignore":
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-child = subprocess.Popen([sys.executable, "-c", sys.argv[2], sys.argv[1]])
+child = subprocess.Popen([sys.executable, "-c", sys.argv[3], sys.argv[2]])
 print(child.pid, flush=True)
 time.sleep(60)
 """
@@ -35,9 +36,9 @@ time.sleep(60)
 pytestmark = pytest.mark.skipif(not hasattr(os, "pidfd_open"), reason="needs pidfd_open (Linux)")
 
 
-def leader_and_child(mode: str) -> tuple[subprocess.Popen[bytes], int]:
+def leader_and_child(leader: str, child: str) -> tuple[subprocess.Popen[bytes], int]:
     """The leader, and a pidfd of its child (readable once the child has exited)."""
-    proc = start_group([sys.executable, "-c", LEADER, mode, CHILD], stdout=subprocess.PIPE)
+    proc = start_group([sys.executable, "-c", LEADER, leader, child, CHILD], stdout=subprocess.PIPE)
     assert proc.stdout is not None
     child = int(proc.stdout.readline())
     return proc, os.pidfd_open(child)
@@ -51,14 +52,22 @@ def exits(pidfd: int) -> bool:
 
 
 def test_an_interrupted_group_ends_whole() -> None:
-    proc, child = leader_and_child("default")
+    proc, child = leader_and_child("default", "default")
     end_group(proc, TIMEOUT_S)
-    assert proc.returncode is not None
+    assert proc.returncode == -signal.SIGINT
+    assert exits(child)
+
+
+def test_a_child_that_loses_the_interrupt_is_killed_once_the_leader_has_exited() -> None:
+    """As a daemon still starting up may (Python can drop a KeyboardInterrupt raised mid-import)."""
+    proc, child = leader_and_child("default", "ignore")
+    end_group(proc, TIMEOUT_S)
+    assert proc.returncode == -signal.SIGINT
     assert exits(child)
 
 
 def test_a_group_that_ignores_the_interrupt_is_killed_after_the_grace() -> None:
-    proc, child = leader_and_child("ignore")
+    proc, child = leader_and_child("ignore", "ignore")
     end_group(proc, 0.3)
     assert proc.returncode == -signal.SIGKILL
     assert exits(child)

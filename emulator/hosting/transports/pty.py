@@ -63,6 +63,16 @@ READ_CHUNK = 256
 OUTPUT_LIMIT = 4096
 
 
+def drop_overrun(pending: bytearray) -> int:
+    """Cut `pending` to OUTPUT_LIMIT; how many bytes were dropped (the newest are the ones lost, as
+    in a UART overrun)."""
+    excess = len(pending) - OUTPUT_LIMIT
+    if excess <= 0:
+        return 0
+    del pending[OUTPUT_LIMIT:]
+    return excess
+
+
 _yielded = False
 
 
@@ -364,11 +374,7 @@ class PtyTransport(Transport):
         self._pending += data
         if not waiting:
             self._flush()
-        excess = len(self._pending) - OUTPUT_LIMIT
-        if excess <= 0:
-            return 0
-        del self._pending[OUTPUT_LIMIT:]  # the newest bytes are the ones lost, as in an overrun
-        return excess
+        return drop_overrun(self._pending)
 
     def _flush(self) -> None:
         sent = 0

@@ -29,7 +29,7 @@ from collections.abc import Callable
 import serial
 
 from emulator.hosting.transports.base import PortSink
-from emulator.hosting.transports.pty import OUTPUT_LIMIT, READ_CHUNK
+from emulator.hosting.transports.pty import OUTPUT_LIMIT, READ_CHUNK, drop_overrun
 from emulator.hosting.transports.serial_port import LineError, error_counts, error_kind, unmark
 
 #: `gone(reason)`: the port failed (reason: a few words for the log)
@@ -147,11 +147,7 @@ class FdIo:
         self._pending += data
         if not waiting:
             self._flush()
-        excess = len(self._pending) - OUTPUT_LIMIT
-        if excess <= 0:
-            return 0
-        del self._pending[OUTPUT_LIMIT:]  # the newest bytes are the ones lost, as in an overrun
-        return excess
+        return drop_overrun(self._pending)
 
     def _flush(self) -> None:
         while self._pending and not self._stopped:

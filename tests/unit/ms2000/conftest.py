@@ -3,7 +3,9 @@ current time, their replies back at once, time moved explicitly."""
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -11,6 +13,8 @@ import pytest
 
 from emulator.device import DeviceServices
 from emulator.devices.ms2000.model import Ms2000Device
+from emulator.devices.ms2000.schema import build_schema
+from emulator.profiles import registry
 from emulator.profiles.profile import Profile, load_profile
 from tests.support.model_harness import ModelHarness
 
@@ -84,3 +88,16 @@ def make() -> Iterator[Callable[..., Harness]]:
 @pytest.fixture
 def ms() -> Harness:
     return Harness()
+
+
+@contextmanager
+def schema_rebuilt() -> Iterator[None]:
+    """The ms2000 family's schema built again, with the fields of modules a test registered, for
+    the duration; the family as it was afterwards."""
+    family = registry.family("ms2000")
+    assert family is not None
+    registry.register(dataclasses.replace(family, schema=build_schema()))
+    try:
+        yield
+    finally:
+        registry.register(family)

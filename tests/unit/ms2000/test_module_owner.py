@@ -5,7 +5,6 @@ not even to let one of them talk to an existing module (ARRAY) through events.""
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Iterator, Mapping
 from typing import Any, ClassVar
 
@@ -16,12 +15,11 @@ from emulator.devices.ms2000.modules import MODULES, Handler, Module
 from emulator.devices.ms2000.modules.capabilities import ControlChannel, LcdSegment, Playback
 from emulator.devices.ms2000.modules.events import ArrayArrival, Reset, RmX, on
 from emulator.devices.ms2000.modules.owner import ModuleOwner
-from emulator.devices.ms2000.schema import DEFAULT_MODULES, build_schema
-from emulator.profiles import registry
+from emulator.devices.ms2000.schema import DEFAULT_MODULES
 from emulator.profiles.profile import ProfileError, load_profile
 from emulator.profiles.schema import Field, Int
 from protocols.ms2000 import Fmt, Shape
-from tests.unit.ms2000.conftest import Harness
+from tests.unit.ms2000.conftest import Harness, schema_rebuilt
 
 ACK = b":A\r\n"
 PROBE = "TEST PROBE"
@@ -112,13 +110,8 @@ def probe_registered(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
     """Register the modules and their schema fields, as importing their files from modules/ would."""
     monkeypatch.setitem(MODULES, PROBE, ProbeModule)
     monkeypatch.setitem(MODULES, WATCHER, ArrayWatcher)
-    family = registry.family("ms2000")
-    assert family is not None
-    registry.register(dataclasses.replace(family, schema=build_schema()))
-    try:
+    with schema_rebuilt():
         yield
-    finally:
-        registry.register(family)
 
 
 @pytest.fixture

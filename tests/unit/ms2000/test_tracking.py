@@ -3,7 +3,6 @@ CRISP serves `LK`/`LR`/`UL` when a build lists both."""
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Iterator
 
 import pytest
@@ -13,10 +12,8 @@ from emulator.devices.ms2000.calls import Call, Reply
 from emulator.devices.ms2000.modules import MODULES, Handler, Module
 from emulator.devices.ms2000.modules.tracking import Tracking
 from emulator.devices.ms2000.modules.tracking_signal import errors
-from emulator.devices.ms2000.schema import build_schema
-from emulator.profiles import registry
 from emulator.profiles.profile import load_profile
-from tests.unit.ms2000.conftest import Harness
+from tests.unit.ms2000.conftest import Harness, schema_rebuilt
 
 ACK = b":A\r\n"
 EVEN = {"q1": 100, "q2": 100, "q3": 100, "q4": 100}
@@ -231,13 +228,8 @@ def crisp_stand_in(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
         yield
         return
     monkeypatch.setitem(MODULES, "CRISP", FocusLockStandIn)
-    family = registry.family("ms2000")
-    assert family is not None
-    registry.register(dataclasses.replace(family, schema=build_schema()))
-    try:
+    with schema_rebuilt():
         yield
-    finally:
-        registry.register(family)
 
 
 @pytest.mark.parametrize(
