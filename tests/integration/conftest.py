@@ -38,7 +38,7 @@ FIXTURE = "smoke_runs"
 RFC2217, PTY, SERIAL = "rfc2217", "pty", "serial"
 #: a run that has not finished this long after it started has hung
 RUN_TIMEOUT_S = 300.0
-#: how long an interrupted run may take to stop its daemons before all of it is killed
+#: how long a run being ended may take to stop its daemons before all of it is killed
 END_GRACE_S = 10.0
 
 

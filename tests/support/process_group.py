@@ -16,21 +16,21 @@ def start_group(command: list[str], **popen: Any) -> subprocess.Popen[bytes]:
 
 
 def end_group(proc: subprocess.Popen[bytes], grace_s: float) -> None:
-    """Interrupt the whole group (pytest tears its fixtures down, a daemon stops cleanly), then,
-    once the leader has exited or `grace_s` has passed, kill what is left of the group: a child
-    still starting up may lose the interrupt, one may hang. A leader that has exited and been
-    reaped is left alone: its group number may belong to someone else by now."""
+    """Terminate the whole group (a daemon stops cleanly on SIGTERM; SIGINT is no use here, as a
+    background job's children inherit it ignored), then, once the leader has exited or `grace_s`
+    has passed, kill what is left of the group: one may ignore SIGTERM or hang. A leader that has
+    exited and been reaped is left alone: its group number may belong to someone else by now."""
     if proc.poll() is not None:
         return
     # from here on the leader is alive or an unreaped zombie, so the group number is still its own
-    os.killpg(proc.pid, signal.SIGINT)
+    os.killpg(proc.pid, signal.SIGTERM)
     if hasattr(os, "pidfd_open"):
         leader = os.pidfd_open(proc.pid)
         try:
             select.select([leader], [], [], grace_s)  # readable once it has exited; still unreaped
         finally:
             os.close(leader)
-    else:  # no way to wait without reaping: only a leader that outlives the grace takes the rest
+    else:  # no way to wait without reaping: only a leader that outlives the grace gets the rest killed
         try:
             proc.wait(grace_s)
             return
